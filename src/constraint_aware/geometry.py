@@ -1,0 +1,99 @@
+"""Vector math shared by the policy, the training env and the executor (numpy only).
+
+Everything here works on a single vector of shape (3,) or on a batch of shape (N, 3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from constraint_aware.errors import InvalidInputError
+
+FloatArray = NDArray[np.float64]
+
+#: Below this norm the sum d + a is treated as zero and the direction is kept.
+DIRECTION_EPS = 1e-6
+
+
+def as_vector(value: ArrayLike, name: str, *, batch: bool = False) -> FloatArray:
+    """Return `value` as a finite float64 array of shape (3,) (or (N, 3) with `batch`).
+
+    Raises:
+        InvalidInputError: naming `name` when the shape is wrong or a value is NaN/inf.
+    """
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"{name}: not a numeric array ({exc})") from exc
+    if batch:
+        if arr.ndim != 2 or arr.shape[1] != 3:
+            raise InvalidInputError(f"{name}: expected shape (N, 3), got {arr.shape}")
+    elif arr.shape != (3,):
+        raise InvalidInputError(f"{name}: expected shape (3,), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InvalidInputError(f"{name}: contains NaN or inf")
+    return arr
+
+
+def unit(v: FloatArray, eps: float = 1e-12) -> FloatArray:
+    """Normalize along the last axis; vectors with norm <= eps become zero vectors."""
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    safe = np.where(norm > eps, norm, 1.0)
+    return np.where(norm > eps, v / safe, 0.0)
+
+
+def angle_deg(a: FloatArray, b: FloatArray) -> FloatArray | float:
+    """Angle [deg] between vectors along the last axis (robust near 0 and 180 deg)."""
+    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    dot = np.sum(a * b, axis=-1)
+    out = np.degrees(np.arctan2(cross, dot))
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def normalize_force(force: FloatArray, threshold: float) -> FloatArray:
+    """F / |F|, or the zero vector where |F| < threshold (paper 3.3.2).
+
+    force: (3,) or (N, 3) [N]; threshold [N].
+    """
+    norm = np.linalg.norm(force, axis=-1, keepdims=True)
+    keep = norm >= max(threshold, 1e-12)
+    return np.where(keep, force / np.where(keep, norm, 1.0), 0.0)
+
+
+def update_direction_rule(direction: FloatArray, action: FloatArray) -> FloatArray:
+    """d_{t+1} = (d_t + a_t) / |d_t + a_t| (paper eq. 1), keeping d_t where |d_t + a_t| ~ 0."""
+    s = direction + action
+    norm = np.linalg.norm(s, axis=-1, keepdims=True)
+    ok = norm > DIRECTION_EPS
+    return np.where(ok, s / np.where(ok, norm, 1.0), direction)
+
+
+def rotate_about(v: FloatArray, axis: FloatArray, angle_rad: FloatArray | float) -> FloatArray:
+    """Rodrigues rotation of v about the unit `axis` by `angle_rad` (batched on the last axis)."""
+    ang = np.asarray(angle_rad, dtype=np.float64)[..., None]
+    c, s = np.cos(ang), np.sin(ang)
+    kv = np.sum(axis * v, axis=-1, keepdims=True)
+    return v * c + np.cross(axis, v) * s + axis * kv * (1.0 - c)
+
+
+def random_unit(rng: np.random.Generator, n: int) -> FloatArray:
+    """n unit vectors uniform on the sphere: (n, 3)."""
+    v = rng.normal(size=(n, 3))
+    norm = np.linalg.norm(v, axis=1, keepdims=True)
+    # a zero draw has probability 0; guard anyway so no NaN can escape
+    v = np.where(norm > 1e-9, v, np.array([1.0, 0.0, 0.0]))
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def random_perpendicular(rng: np.random.Generator, axis: FloatArray) -> FloatArray:
+    """For each row of `axis` (N, 3), a unit vector perpendicular to it, uniform in angle."""
+    v = random_unit(rng, axis.shape[0])
+    p = v - np.sum(v * axis, axis=1, keepdims=True) * axis
+    bad = np.linalg.norm(p, axis=1) < 1e-6
+    if np.any(bad):  # v happened to be parallel to the axis: use any fixed perpendicular
+        alt = np.cross(axis[bad], np.array([0.0, 0.0, 1.0]))
+        small = np.linalg.norm(alt, axis=1) < 1e-6
+        alt[small] = np.cross(axis[bad][small], np.array([1.0, 0.0, 0.0]))
+        p[bad] = alt
+    return unit(p)

@@ -1,0 +1,43 @@
+"""Training: a short, seeded PPO run must lower the final angle well below the untrained one."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.training.curve import read_log
+from constraint_aware.training.ppo import make_config, train
+
+
+@pytest.mark.slow
+def test_short_training_lowers_the_angle(tmp_path: Path) -> None:
+    config = make_config("fast", total_timesteps=150_000, eval_every=5, eval_episodes=2000)
+    result = train(config, tmp_path, final_eval_episodes=2000)
+    log = read_log(tmp_path / "training_log.csv")
+    angles = log["eval_mean_final_angle_deg"]
+    assert log["timesteps"][0] == 0.0  # the untrained policy is the first point
+    assert angles[0] > 15.0  # untrained ~ keep d (22 deg)
+    assert min(angles[1:]) < 0.5 * angles[0]
+    metrics = result.policy.metrics
+    assert metrics["policy"]["mean_final_angle_deg"] < metrics["noop"]["mean_final_angle_deg"]
+    again = ConstraintAwarePolicy.load(tmp_path / "policy.npz")
+    assert again.card["train_config"]["total_timesteps"] == 150_000
+
+
+def test_unknown_preset_lists_valid_names() -> None:
+    from constraint_aware.errors import UnknownNameError
+
+    with pytest.raises(UnknownNameError, match="fast, paper"):
+        make_config("turbo")
+
+
+def test_paper_preset_uses_paper_values() -> None:
+    paper = make_config("paper")
+    assert paper.learning_rate == 5e-5
+    assert paper.n_envs * paper.env.episode_length == 6000
+    assert 6000 % paper.batch_size == 0
+    assert paper.net_arch == (256, 256)
