@@ -1,0 +1,115 @@
+"""Direction controllers behind one interface: given the offset force and d_t, return d_{t+1}."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from constraint_aware.errors import UnknownNameError
+from constraint_aware.geometry import FloatArray, normalize_force, unit, update_direction_rule
+from constraint_aware.policy import ConstraintAwarePolicy
+
+
+@dataclass(frozen=True)
+class ControlInput:
+    """What a controller sees each control step.
+
+    force: (3,) [N] F = F_s - F_d, world frame (raw: not thresholded, not normalized);
+    torque: (3,) [N m] about the tool point, offset removed; direction: (3,) unit d_t;
+    dt: [s] control period; threshold: [N] below which |F| counts as no force.
+    """
+
+    force: FloatArray
+    torque: FloatArray
+    direction: FloatArray
+    dt: float
+    threshold: float
+
+
+class DirectionController(Protocol):
+    name: str
+
+    def reset(self, direction: FloatArray) -> None:
+        """Start of a run with the initial direction d0 (3,)."""
+        ...
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        """d_{t+1}: (3,) unit vector."""
+        ...
+
+    def step_length(self, nominal: float) -> float:
+        """[m] translation this step; most controllers always move the nominal 1 cm."""
+        ...
+
+
+class _Base:
+    name = "base"
+
+    def reset(self, direction: FloatArray) -> None:
+        pass
+
+    def step_length(self, nominal: float) -> float:
+        return nominal
+
+
+class FixedDirection(_Base):
+    """No correction: keep d0 (the baseline that shows what the correction buys)."""
+
+    name = "fixed"
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        return inp.direction
+
+
+class ProjectionController(_Base):
+    """d <- d - (d.F^)F^, renormalized: exact for a frictionless guide."""
+
+    name = "projection"
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        f_hat = normalize_force(inp.force, inp.threshold)
+        a = -float(inp.direction @ f_hat) * f_hat
+        return np.asarray(update_direction_rule(inp.direction, a))
+
+
+class PolicyController(_Base):
+    """The constraint-aware policy (paper 3.3): d <- (d + pi(F^, d)) / |d + pi(F^, d)|."""
+
+    name = "policy"
+
+    def __init__(self, policy: ConstraintAwarePolicy | None = None) -> None:
+        self.policy = policy or ConstraintAwarePolicy.load()
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        return self.policy.update_direction(inp.force, inp.direction, threshold=inp.threshold)
+
+
+def make_controller(name: str, policy: ConstraintAwarePolicy | None = None) -> DirectionController:
+    """A controller by name: policy, fixed, projection or classical."""
+    if name == "policy":
+        return PolicyController(policy)
+    if name == "fixed":
+        return FixedDirection()
+    if name == "projection":
+        return ProjectionController()
+    if name == "classical":
+        from constraint_aware.control.classical import ClassicalController
+
+        return ClassicalController()
+    raise UnknownNameError("controller", name, list(CONTROLLERS))
+
+
+CONTROLLERS = ("policy", "fixed", "projection", "classical")
+
+
+def project_on_plane(direction: FloatArray, normal: FloatArray | None) -> FloatArray:
+    """d with its component along the workplane normal removed (assumption 4), renormalized.
+
+    Keeps d when it is (nearly) parallel to the normal, rather than returning a zero vector.
+    """
+    if normal is None:
+        return direction
+    p = direction - float(direction @ normal) * normal
+    return unit(p) if np.linalg.norm(p) > 1e-6 else direction
