@@ -33,6 +33,11 @@ class Robot(Protocol):
         e.g. while pressing on an object)."""
         ...
 
+    def grasp_contact(self) -> bool | None:
+        """Whether the hand still touches the object, from the hand's own sensing (finger
+        torques, tactile pads); None when the hand cannot tell."""
+        ...
+
     def command_pose(self, pose: Pose) -> None:
         """Set the compliant controller's target, reached over the next control period."""
         ...

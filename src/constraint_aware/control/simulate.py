@@ -110,6 +110,8 @@ def run(
         "success_progress": task.success_progress,
         "constraint_type": task.constraint_type,
         "force_exertion_type": task.force_exertion_type,
+        "force_limit_N": task.force_limit,
+        "command_from": cfg.command_from,
     }
     return executor.run(d0, label), sim
 

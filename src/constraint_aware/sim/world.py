@@ -121,6 +121,7 @@ class ManipulationSim:
         self._grasp_rel: tuple[FloatArray, Rotation] | None = None
         self.time_steps = 0
         self._filtered = np.zeros(6)
+        self._touched = False
         self._next_pose: Pose | None = None
 
     # --- pose <-> arm joints --------------------------------------------------------------
@@ -189,10 +190,13 @@ class ManipulationSim:
     def _settle_filter(self) -> None:
         """Step `FILTER_STEPS` substeps, averaging the wrench as the sensor's filter does."""
         acc = np.zeros(6)
+        touched = False
         for _ in range(FILTER_STEPS):
             mujoco.mj_step(self.model, self.data)
             acc += self._sample_wrench()
+            touched = touched or self.in_contact()
         self._filtered = acc / FILTER_STEPS
+        self._touched = touched
 
     def read_wrench(self) -> Wrench:
         """The wrist wrench averaged over the last 20 ms (a sensor's low-pass filter)."""
@@ -272,6 +276,11 @@ class ManipulationSim:
         rel, rot = self._hand_in_handle()
         rel0, rot0 = self._grasp_rel
         return float(np.linalg.norm(rel - rel0)), float(np.degrees((rot0.inv() * rot).magnitude()))
+
+    def grasp_contact(self) -> bool | None:
+        """The hand's contact sensing: any hand-object contact during the last 20 ms (a bar
+        held loosely chatters, so one instant is not enough)."""
+        return self._touched
 
     def in_contact(self) -> bool:
         """Whether any hand geom touches any object geom."""

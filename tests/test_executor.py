@@ -1,0 +1,231 @@
+"""The executor's logic against a fake robot: no MuJoCo anywhere in this file."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from constraint_aware.control.controllers import (
+    ControlInput,
+    FixedDirection,
+    PolicyController,
+    ProjectionController,
+)
+from constraint_aware.control.executor import Executor, ExecutorConfig
+from constraint_aware.control.torque_policy import TorquePolicy
+from constraint_aware.errors import InvalidInputError
+from constraint_aware.geometry import angle_deg, rotate_about
+from constraint_aware.spatial import Pose, Wrench
+
+U = np.array([1.0, 0.0, 0.0])
+WEIGHT = np.array([0.0, 0.0, -6.0])  # the hand's own weight in the raw reading
+
+
+@dataclass
+class FakeGuide:
+    """Hand rigidly holding a body on a frictionless guide along U, arm stiffness k.
+
+    Quasi-static: after a command the body slides to the target's projection on the guide and
+    the object's force on the hand is k (body - target). Also its own TaskMonitor.
+    """
+
+    k: float = 2000.0
+    goal: float = 0.25
+    nan_after: int | None = None
+    lose_contact_after: int | None = None
+    torque: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    target: Pose = field(default_factory=lambda: Pose(np.zeros(3), Rotation.identity()))
+    commands: list[Pose] = field(default_factory=list)
+    steps: int = 0
+
+    control_period = 0.1
+
+    def read_wrench(self) -> Wrench:
+        if self.nan_after is not None and self.steps > self.nan_after:
+            return Wrench(np.full(3, np.nan), np.zeros(3))
+        force = self.k * (self.position - self.target.position) + WEIGHT
+        return Wrench(force, self.torque.copy())
+
+    def read_pose(self) -> Pose:
+        return Pose(self.position.copy(), self.target.orientation)
+
+    def commanded_pose(self) -> Pose:
+        return self.target
+
+    def grasp_contact(self) -> bool | None:
+        return not (self.lose_contact_after is not None and self.steps > self.lose_contact_after)
+
+    def command_pose(self, pose: Pose) -> None:
+        self.target = pose
+        self.commands.append(pose)
+
+    def advance(self) -> None:
+        self.position = float(self.target.position @ U) * U
+        self.steps += 1
+
+    # TaskMonitor
+    def admissible_direction(self) -> np.ndarray:
+        return U.copy()
+
+    def progress(self) -> float:
+        return float(self.position @ U)
+
+    def succeeded(self) -> bool:
+        return self.progress() >= self.goal
+
+    def grasp_failure(self) -> str | None:
+        return None
+
+    def slip(self) -> tuple[float, float]:
+        return 0.0, 0.0
+
+    def handle_position(self) -> np.ndarray:
+        return self.position.copy()
+
+
+def d0(offset_deg: float) -> np.ndarray:
+    return rotate_about(U, np.array([0.0, 0.0, 1.0]), math.radians(offset_deg))
+
+
+def test_projection_converges_and_succeeds() -> None:
+    robot = FakeGuide()
+    rec = Executor(robot, ProjectionController(), ExecutorConfig(), monitor=robot).run(d0(30))
+    assert rec.outcome == "success"
+    assert rec.angles[0] == pytest.approx(30.0)
+    assert rec.angles[2] < 1e-6  # one update after the first measured force
+    assert rec.progress >= 0.25
+
+
+def test_policy_stops_correcting_below_the_threshold() -> None:
+    robot = FakeGuide()
+    rec = Executor(robot, PolicyController(), ExecutorConfig(threshold=3.0), monitor=robot).run(
+        d0(-30)
+    )
+    assert rec.success
+    # below the threshold the direction is left alone: angles under asin(thr / (k step))
+    floor = math.degrees(math.asin(3.0 / (robot.k * 0.01)))
+    assert max(rec.angles[4:]) < floor + 1.0
+
+
+def test_policy_on_a_frictionless_guide_keeps_the_median_friction_bias() -> None:
+    """(F^, d) fixes only error + atan(mu): on a frictionless guide the policy, trained on
+    mu ~ U(0, 0.15), corrects for the tilt of a typical mu that is not there."""
+    robot = FakeGuide()
+    cfg = ExecutorConfig(threshold=0.2)
+    rec = Executor(robot, PolicyController(), cfg, monitor=robot).run(d0(-30))
+    mean_mu = float(np.mean(PolicyController().policy.card["env_config"]["friction"]))
+    assert rec.angles[-1] == pytest.approx(math.degrees(math.atan(mean_mu)), abs=1.5)
+
+
+def test_offset_is_subtracted_before_the_controller_sees_the_force() -> None:
+    seen: list[ControlInput] = []
+
+    class Spy(FixedDirection):
+        def next_direction(self, inp: ControlInput) -> np.ndarray:
+            seen.append(inp)
+            return inp.direction
+
+    robot = FakeGuide()
+    Executor(robot, Spy(), ExecutorConfig(max_steps=3)).run(U)
+    assert np.allclose(seen[0].force, 0.0)  # the weight is in F_d, not in F
+    assert np.allclose(seen[1].force, 0.0)  # aligned: no constraint force either
+
+
+def test_force_limit_stops_the_run() -> None:
+    robot = FakeGuide(k=20000.0)
+    rec = Executor(robot, FixedDirection(), ExecutorConfig(), monitor=robot).run(d0(40))
+    assert rec.outcome == "force_limit"
+    assert rec.peak_force > 60.0
+
+
+def test_nan_sensor_stops_without_raising() -> None:
+    robot = FakeGuide(nan_after=3)
+    rec = Executor(robot, PolicyController(), ExecutorConfig(), monitor=robot).run(d0(10))
+    assert rec.outcome == "nan"
+    assert len(rec.steps) == 4
+
+
+def test_lost_contact_stops_after_the_configured_steps() -> None:
+    robot = FakeGuide(lose_contact_after=2)
+    cfg = ExecutorConfig(lost_contact_steps=4)
+    rec = Executor(robot, FixedDirection(), cfg, monitor=robot).run(U)
+    assert rec.outcome == "contact_lost"
+    assert rec.steps[-1].step == 2 + 4  # contact gone from step 3; the 4th such step stops
+
+
+def test_commands_stay_in_the_workplane() -> None:
+    class Upward(FixedDirection):
+        def next_direction(self, inp: ControlInput) -> np.ndarray:
+            return np.array([1.0, 0.0, 1.0]) / math.sqrt(2)
+
+    robot = FakeGuide()
+    Executor(robot, Upward(), ExecutorConfig(max_steps=4)).run(U)
+    for pose in robot.commands:
+        assert abs(pose.position[2]) < 1e-12
+    step = robot.commands[1].position - robot.commands[0].position
+    assert np.linalg.norm(step) == pytest.approx(0.01)
+
+
+def test_revolute_hand_turns_with_the_direction() -> None:
+    class TurnTen(FixedDirection):
+        def next_direction(self, inp: ControlInput) -> np.ndarray:
+            return rotate_about(inp.direction, np.array([0.0, 0.0, 1.0]), math.radians(10))
+
+    robot = FakeGuide()
+    cfg = ExecutorConfig(constraint_type="revolute", max_steps=3)
+    Executor(robot, TurnTen(), cfg).run(U)
+    rotvec = robot.commands[0].orientation.as_rotvec()
+    np.testing.assert_allclose(rotvec, [0.0, 0.0, math.radians(10)], atol=1e-12)
+    total = robot.commands[-1].orientation.as_rotvec()
+    np.testing.assert_allclose(total, [0.0, 0.0, math.radians(30)], atol=1e-12)
+
+
+def test_torque_policy_rotates_by_v_over_r_then_adapts() -> None:
+    robot = FakeGuide(torque=np.array([0.0, 0.0, 0.5]))  # the object drags the hand round
+    cfg = ExecutorConfig(
+        constraint_type="revolute", max_steps=3, torque_policy=True, rotation_radius=0.1
+    )
+    rec = Executor(robot, FixedDirection(), cfg).run(U)
+    w0 = 0.01 / 0.1
+    # the torque is offset-corrected: a constant torque is part of tau_d, so w stays v/r
+    assert [s.rotation_rate for s in rec.steps[:3]] == pytest.approx([w0, w0, w0])
+    angle = robot.commands[0].orientation.magnitude()
+    assert angle == pytest.approx(w0)
+
+
+def test_torque_policy_rule() -> None:
+    tp = TorquePolicy(radius=0.12, alpha=0.1, beta=math.radians(1))
+    n = np.array([0.0, 0.0, 1.0])
+    w0 = tp.w
+    assert tp.update(np.array([0.0, 0.0, 0.05]), n) == pytest.approx(w0)
+    assert tp.update(np.array([0.0, 0.0, 0.2]), n) == pytest.approx(w0 + math.radians(1))
+    assert tp.update(np.array([0.0, 0.0, -0.2]), n) == pytest.approx(w0)
+    with pytest.raises(InvalidInputError):
+        TorquePolicy(radius=0.0)
+
+
+def test_bad_config_is_rejected_with_valid_names() -> None:
+    with pytest.raises(InvalidInputError, match="prismatic, revolute"):
+        ExecutorConfig(constraint_type="spherical")  # type: ignore[arg-type]
+    with pytest.raises(InvalidInputError, match="rotation_radius"):
+        ExecutorConfig(constraint_type="revolute", torque_policy=True)
+
+
+def test_executor_module_never_imports_mujoco() -> None:
+    code = (
+        "import sys\n"
+        "import constraint_aware.control.executor, constraint_aware.control.controllers\n"
+        "assert 'mujoco' not in sys.modules, 'mujoco imported'\n"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_angle_helper_matches_ground_truth() -> None:
+    assert angle_deg(U, d0(25.0)) == pytest.approx(25.0)
