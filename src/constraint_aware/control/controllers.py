@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.geometry import FloatArray, normalize_force, unit, update_direction_rule
@@ -18,7 +19,8 @@ class ControlInput:
 
     force: (3,) [N] F = F_s - F_d, world frame (raw: not thresholded, not normalized);
     torque: (3,) [N m] about the tool point, offset removed; direction: (3,) unit d_t;
-    dt: [s] control period; threshold: [N] below which |F| counts as no force.
+    dt: [s] control period; threshold: [N] below which |F| counts as no force;
+    workplane_normal: (3,) unit, when the workplane is known (assumption 4).
     """
 
     force: FloatArray
@@ -26,6 +28,7 @@ class ControlInput:
     direction: FloatArray
     dt: float
     threshold: float
+    workplane_normal: FloatArray | None = None
 
 
 class DirectionController(Protocol):
@@ -43,6 +46,11 @@ class DirectionController(Protocol):
         """[m] translation this step; most controllers always move the nominal 1 cm."""
         ...
 
+    def hand_rotation(self) -> Rotation | None:
+        """This step's hand rotation if the controller decides it; None: the executor's rule
+        (paper 3.4.1 on revolute constraints, or the torque policy)."""
+        ...
+
 
 class _Base:
     name = "base"
@@ -52,6 +60,9 @@ class _Base:
 
     def step_length(self, nominal: float) -> float:
         return nominal
+
+    def hand_rotation(self) -> Rotation | None:
+        return None
 
 
 class FixedDirection(_Base):
@@ -86,8 +97,19 @@ class PolicyController(_Base):
         return self.policy.update_direction(inp.force, inp.direction, threshold=inp.threshold)
 
 
-def make_controller(name: str, policy: ConstraintAwarePolicy | None = None) -> DirectionController:
-    """A controller by name: policy, fixed, projection or classical."""
+def make_controller(
+    name: str,
+    policy: ConstraintAwarePolicy | None = None,
+    rotation_rate: float | None = None,
+    rotation_axis: FloatArray | None = None,
+    params: dict[str, float] | None = None,
+) -> DirectionController:
+    """A controller by name: policy, fixed, projection or classical.
+
+    rotation_rate [rad/s] and rotation_axis (3,) give the classical controller its rotational
+    part (revolute tasks); the other controllers leave hand rotation to the executor. params:
+    the classical controller's gains (ClassicalGains fields).
+    """
     if name == "policy":
         return PolicyController(policy)
     if name == "fixed":
@@ -95,9 +117,10 @@ def make_controller(name: str, policy: ConstraintAwarePolicy | None = None) -> D
     if name == "projection":
         return ProjectionController()
     if name == "classical":
-        from constraint_aware.control.classical import ClassicalController
+        from constraint_aware.control.classical import ClassicalController, ClassicalGains
 
-        return ClassicalController()
+        gains = ClassicalGains(**(params or {}))
+        return ClassicalController(gains, w_d=rotation_rate, axis=rotation_axis)
     raise UnknownNameError("controller", name, list(CONTROLLERS))
 
 

@@ -146,7 +146,7 @@ class Executor:
                 )
                 return record
 
-            inp = ControlInput(force, torque, d, self.robot.control_period, cfg.threshold)
+            inp = ControlInput(force, torque, d, self.robot.control_period, cfg.threshold, normal)
             d_next = project_on_plane(unit(self.controller.next_direction(inp)), normal)
             rotation = self._hand_rotation(d, d_next, torque, normal, torque_policy, step)
             length = self.controller.step_length(cfg.step_length)
@@ -172,6 +172,9 @@ class Executor:
     ) -> Rotation:
         if self.config.constraint_type != "revolute":
             return Rotation.identity()
+        own = self.controller.hand_rotation()
+        if own is not None:
+            return own
         if torque_policy is not None and normal is not None:
             if step > 0:  # the torque read now results from the previous step's rotation
                 torque_policy.update(torque, normal)

@@ -14,7 +14,7 @@ from constraint_aware.control.record import RunRecord
 from constraint_aware.geometry import FloatArray, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.tasks import TaskConfig, randomized, task_config
-from constraint_aware.sim.world import ManipulationSim
+from constraint_aware.sim.world import CONTROL_PERIOD, ManipulationSim
 from constraint_aware.spatial import Wrench
 
 
@@ -56,6 +56,7 @@ class RunSpec:
     sensor_noise: float = 0.1  # [N] std of the force reading per axis
     sensor_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N]
     overrides: tuple[tuple[str, object], ...] = ()  # task parameter overrides
+    controller_params: tuple[tuple[str, float], ...] = ()  # e.g. classical gains
 
 
 def executor_config(task: TaskConfig, torque_policy: bool | None = None) -> ExecutorConfig:
@@ -94,8 +95,13 @@ def run(
     sim.reset()
     normal = np.asarray(task.workplane_normal, dtype=float)
     d0 = rotate_about(sim.admissible_direction(), normal, math.radians(spec.offset_deg))
-    ctrl = controller or make_controller(spec.controller, policy)
     cfg = executor_config(task, spec.torque_policy)
+    rate = None
+    if task.constraint_type == "revolute":
+        rate = cfg.step_length / CONTROL_PERIOD / task.object.radius  # w_d = v_d / r
+    ctrl = controller or make_controller(
+        spec.controller, policy, rate, normal, dict(spec.controller_params)
+    )
     executor = Executor(sim, ctrl, cfg, monitor=sim)
     if on_step is not None:
         executor.robot = _Observed(sim, on_step)  # type: ignore[assignment]
