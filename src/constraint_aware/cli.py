@@ -194,6 +194,25 @@ def cmd_view(args: argparse.Namespace) -> int:
     return 0
 
 
+# --- cap bench ------------------------------------------------------------------------------
+def cmd_bench(args: argparse.Namespace) -> int:
+    import time
+
+    from constraint_aware.bench.run import replot, run_bench
+
+    start = time.perf_counter()
+    if args.replot:
+        report = replot(args.replot)
+    else:
+        report = run_bench(args.out, quick=args.quick, workers=args.workers)
+    console.print(
+        f"report: {report} (results.json and figures beside it); "
+        f"{time.perf_counter() - start:.0f} s",
+        soft_wrap=True,
+    )
+    return 0
+
+
 # --- parser ---------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
@@ -244,6 +263,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", help="save angle and force curves here (.png)")
     p.add_argument("--video", help="render the run offscreen (.gif, or .mp4 with ffmpeg)")
     p.set_defaults(func=cmd_run)
+
+    p = sub.add_parser("bench", help="reproduce the paper's experiments as a report")
+    p.add_argument("--quick", action="store_true", help="the paper's experiments, few seeds")
+    p.add_argument("--out", default="bench-out", help="output directory (default bench-out)")
+    p.add_argument("--workers", type=int, help="processes (default: every core)")
+    p.add_argument("--replot", metavar="DIR", help="redraw figures and report from DIR only")
+    p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("view", help="open MuJoCo's interactive viewer on a task")
     p.add_argument("task")

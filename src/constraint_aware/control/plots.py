@@ -45,7 +45,7 @@ def plot_run(record: RunRecord, out_png: str | Path, title: str | None = None) -
 
 
 def plot_trajectory(
-    record: RunRecord, out_png: str | Path, title: str | None = None, every: int = 2
+    record: RunRecord, out_png: str | Path, title: str | None = None, every: int = 3
 ) -> Path:
     """Top view of the tool point with motion-direction and force arrows (paper fig. 12)."""
     hand = np.array([s.hand_position for s in record.steps])
@@ -56,7 +56,7 @@ def plot_trajectory(
     fig, ax = plt.subplots(figsize=(5.6, 5.0))
     ax.plot(xy[:, 0], xy[:, 1], "o", ms=3, color="black", label="tool point")
     idx = np.arange(0, len(xy), every)
-    scale = 0.02
+    scale = 0.04  # [m] arrow length on the plot
     ax.quiver(
         *xy[idx].T,
         *(dirs[idx, :2].T * scale),

@@ -1,0 +1,197 @@
+"""report.md from results.json. Every number printed here is a value of results.json."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+
+def _f(x: float | None, digits: int = 1) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "n/a"
+    return f"{x:.{digits}f}"
+
+
+def _signed(x: float) -> str:
+    return f"{x:+.0f}"
+
+
+def _progress(summary: dict[str, Any]) -> str:
+    if summary["constraint_type"] == "revolute":
+        return f"{_f(summary['progress_deg'], 0)} deg"
+    return f"{_f(summary['progress_cm'], 1)} cm"
+
+
+def _outcome_row(name: str, s: dict[str, Any]) -> str:
+    below = s.get("first_step_below_5_deg")
+    return (
+        f"| {s['task']} | {s['controller']} | {_signed(s['offset_deg'])} | **{s['outcome']}** | "
+        f"{_progress(s)} | {s['steps']} | {_f(s['peak_force_N'])} | {_f(s['mean_force_N'])} | "
+        f"{_f(s['final_angle_deg'])} | {below if below is not None else 'never'} |"
+    )
+
+
+def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) -> Path:
+    meta = results["meta"]
+    figs = meta["paper_figures"]
+    lines: list[str] = []
+    add = lines.append
+    add("# cap bench: the constraint-aware policy, reproduced and stress-tested\n")
+    mode = "quick" if meta["quick"] else "full"
+    add(
+        f"Mode: **{mode}**; {meta['n_tasks']} tasks, {meta['n_controllers']} controllers; "
+        f"wall time {_f(meta['wall_time_s'], 0)} s on {meta['workers']} worker processes. "
+        "Every number below is read from `results.json` in this folder; every figure is "
+        "redrawn from it by `cap bench --replot DIR`.\n"
+    )
+
+    # 1. learning
+    le = results["learning"]
+    fa = le["final_angle_deg"]
+    add("## Training: the shipped policy\n")
+    add(f"![learning curve]({figures['learning']})\n")
+    add(
+        f"Preset `{le['preset']}`, {le['total_timesteps']:,} env steps (best checkpoint at "
+        f"{le['best_timesteps']:,}), {_f(le['wall_time_s'], 0)} s. Mean angle between d and the "
+        f"joint axis after the 5th action, over {le['episodes']:,} evaluation episodes:\n"
+    )
+    add("| controller | mean [deg] | p95 [deg] |\n|---|---|---|")
+    for name, value in fa.items():
+        add(f"| {name} | {_f(value, 2)} | {_f(le['p95_final_angle_deg'][name], 2)} |")
+    add(
+        "\n`mu_agnostic` is the friction-aware correction for the median friction: a policy "
+        "that sees only (F/|F|, d) cannot separate the direction error from the friction tilt, "
+        "so this is about the best such a policy can do; `oracle` knows the friction.\n"
+    )
+
+    # 2. fig 6
+    paper = results["paper"]
+    add(f"## Drawer-opening with direction errors (paper fig. {figs['drawer']})\n")
+    add(f"![drawer]({figures['fig6']})\n")
+    header = (
+        "| task | controller | offset [deg] | outcome | progress | steps | peak F [N] | "
+        "mean F [N] | final angle [deg] | first step < 5 deg |\n" + "|---" * 10 + "|"
+    )
+    add(header)
+    for name in ("fig6_drawer_+30_policy", "fig6_drawer_-30_policy"):
+        add(_outcome_row(name, paper[name]))
+    add("")
+
+    # 3. figs 7-8
+    add(
+        f"## Classical vs constraint-aware on three prismatic tasks (paper figs. "
+        f"{figs['comparison'][0]}-{figs['comparison'][1]})\n"
+    )
+    add(f"![comparison]({figures['fig78']})\n")
+    add(header)
+    for name, s in paper.items():
+        if name.startswith("fig78_"):
+            add(_outcome_row(name, s))
+    add(
+        "\nThe classical controller's gains were tuned on drawer-opening only "
+        "(`benchmarks/tune_classical.py`) and used unchanged everywhere.\n"
+    )
+
+    # 4. fig 9 + appendix
+    add(f"## Revolute joints and the torque policy (paper fig. {figs['revolute']}, appendix)\n")
+    add(f"![revolute]({figures['fig9']})\n")
+    add(header)
+    for name, s in paper.items():
+        if name.startswith(("fig9_", "appendix_")):
+            label = dict(s)
+            if name.startswith("appendix_"):
+                label["controller"] = "policy without torque policy"
+            add(_outcome_row(name, label))
+    add("")
+
+    # 5. figs 11-12
+    add(
+        f"## Force over time and the door's trajectory (paper figs. {figs['force']}, "
+        f"{figs['trajectory']}, in simulation)\n"
+    )
+    add(f"![force]({figures['fig11']})\n\n![trajectory]({figures['fig12']})\n")
+
+    # headline
+    head = results["headline"]
+    add("## Headline: randomized suite\n")
+    add(
+        f"{head['seeds']} seeds per task and controller; friction, mass and damping scaled by "
+        f"U({_f(meta['randomization']['scale'][0])}, {_f(meta['randomization']['scale'][1])}), "
+        f"offsets uniform in ±{_f(meta['randomization']['prismatic_offset_deg'], 0)} deg "
+        f"(prismatic) and ±{_f(meta['randomization']['revolute_offset_deg'], 0)} deg (revolute). "
+        "Cells: successes / runs, median peak force [N].\n"
+    )
+    table = head["table"]
+    ctrls = list(next(iter(table.values())))
+    add("| task | " + " | ".join(ctrls) + " |")
+    add("|---" * (len(ctrls) + 1) + "|")
+    for task, row in table.items():
+        cells = [
+            f"{row[c]['successes']}/{row[c]['n']}, {_f(row[c]['peak_force_median_N'])}"
+            for c in ctrls
+        ]
+        add(f"| {task} | " + " | ".join(cells) + " |")
+    add(f"\n![peak forces]({figures['peak_forces']})\n")
+
+    # beyond
+    if "heatmap" in results:
+        add("## Beyond the paper: how large an initial error each controller survives\n")
+        add(f"![heat map]({figures['heatmap']})\n")
+        hm = results["heatmap"]
+        add("Widest symmetric offset range with every run successful:\n")
+        add("| task | " + " | ".join(ctrls) + " |")
+        add("|---" * (len(ctrls) + 1) + "|")
+        for task in hm["success_rate"]:
+            cells = []
+            for c in ctrls:
+                w = hm["full_success_halfwidth_deg"][task][c]
+                cells.append("none" if w is None else f"±{_f(w, 0)}")
+            add(f"| {task} | " + " | ".join(cells) + " |")
+        add("")
+    if "sensitivity" in results:
+        add("## Beyond the paper: sensitivity\n")
+        add(f"![sensitivity]({figures['sensitivity']})\n")
+        add(
+            "For each factor, the first level at which some run of that controller fails "
+            "(any task at the paper's offset), or `-` when none does:\n"
+        )
+        sens = results["sensitivity"]
+        add("| factor | levels | " + " | ".join(ctrls) + " |")
+        add("|---" * (len(ctrls) + 2) + "|")
+        for name, entry in sens.items():
+            levels = ", ".join(_fmt_level(v) for v in entry["levels"])
+            cells = []
+            for c in ctrls:
+                lv = entry["first_failure"][c]
+                cells.append(
+                    "-" if lv is None else f"{_fmt_level(lv)} ({entry['first_failure_task'][c]})"
+                )
+            add(f"| {name} [{entry['unit']}] | {levels} | " + " | ".join(cells) + " |")
+        add("")
+    if results.get("worst_cases"):
+        add("## Worst cases of the constraint-aware policy\n")
+        add(
+            "| task | offset [deg] | seed | outcome | peak F [N] | conditions |\n"
+            + "|---" * 6
+            + "|"
+        )
+        for w in results["worst_cases"]:
+            cond = ", ".join(f"{k}={_fmt_level(v)}" for k, v in w["overrides"]) or "preset"
+            if w["randomized"]:
+                cond = "randomized " + cond
+            if any(w["sensor_bias_N"]):
+                cond += f", bias {_f(w['sensor_bias_magnitude_N'], 2)} N"
+            cond += f", noise {_f(w['sensor_noise_N'], 2)} N"
+            add(
+                f"| {w['task']} | {_f(w['offset_deg'], 1)} | {w['seed']} | {w['outcome']} | "
+                f"{_f(w['peak_force_N'])} | {cond} |"
+            )
+        add("")
+    path = out / "report.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _fmt_level(v: float) -> str:
+    return f"{v:g}"

@@ -1,0 +1,129 @@
+"""`cap bench`: run the experiments, write results.json, draw the figures, write the report."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from constraint_aware.bench import experiments as ex
+from constraint_aware.bench.figures import draw_all
+from constraint_aware.bench.report import write_report
+from constraint_aware.bench.sweep import SUITE_OFFSET_RANGE
+from constraint_aware.errors import CapError
+from constraint_aware.sim.tasks import TASKS, task_config
+
+RESULTS = "results.json"
+
+
+def _summaries_with_units(paper: dict[str, Any]) -> dict[str, Any]:
+    for s in paper.values():
+        s["progress_deg"] = math.degrees(s["progress"])
+        s["progress_cm"] = 100.0 * s["progress"]
+    return paper
+
+
+def _full_success_halfwidth(heatmap: dict[str, Any]) -> dict[str, dict[str, float | None]]:
+    offsets = np.array(heatmap["offsets_deg"])
+    out: dict[str, dict[str, float | None]] = {}
+    for task, row in heatmap["success_rate"].items():
+        for ctrl, rates in row.items():
+            best = None
+            for w in sorted(set(np.abs(offsets))):
+                inside = np.abs(offsets) <= w
+                if np.all(np.array(rates)[inside] == 1.0):
+                    best = float(w)
+                else:
+                    break
+            out.setdefault(task, {})[ctrl] = best
+    return out
+
+
+def _first_failures(sens: dict[str, Any]) -> None:
+    for entry in sens.values():
+        first: dict[str, float | None] = {}
+        where: dict[str, str | None] = {}
+        for ctrl in ex.CONTROLLERS:
+            first[ctrl], where[ctrl] = None, None
+            for i, level in enumerate(entry["levels"]):
+                failing = [
+                    t for t, data in entry["tasks"].items() if data[ctrl]["success_rate"][i] < 1.0
+                ]
+                if failing:
+                    first[ctrl], where[ctrl] = float(level), ", ".join(failing)
+                    break
+        entry["first_failure"] = first
+        entry["first_failure_task"] = where
+
+
+def run_bench(out: str | Path, quick: bool = False, workers: int | None = None) -> Path:
+    """Run everything (quick: the paper's experiments with few seeds) into `out`."""
+    start = time.perf_counter()
+    cfg = ex.BenchConfig.for_mode(quick, workers)
+    out_dir = Path(out)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    results: dict[str, Any] = {
+        "meta": {
+            "quick": quick,
+            "workers": cfg.workers or os.cpu_count() or 1,
+            "n_tasks": len(TASKS),
+            "n_controllers": len(ex.CONTROLLERS),
+            "controllers": list(ex.CONTROLLERS),
+            "force_limit_N": task_config("drawer-opening").force_limit,
+            "paper_figures": {
+                "drawer": 6,
+                "comparison": [7, 8],
+                "revolute": 9,
+                "force": 11,
+                "trajectory": 12,
+            },
+            "randomization": {
+                "scale": [0.5, 1.5],
+                "prismatic_offset_deg": SUITE_OFFSET_RANGE["prismatic"],
+                "revolute_offset_deg": SUITE_OFFSET_RANGE["revolute"],
+            },
+        }
+    }
+    results["learning"] = ex.learning(out_dir)
+    results["paper"] = _summaries_with_units(ex.paper_experiments(out_dir, cfg.render))
+    table, suite_runs = ex.headline(cfg)
+    for row in table.values():
+        for cell in row.values():
+            cell["successes"] = round(cell["success_rate"] * cell["n"])
+    results["headline"] = {
+        "seeds": cfg.suite_seeds,
+        "table": table,
+        "peak_force_samples": ex.peak_force_samples(suite_runs),
+    }
+    all_runs = list(suite_runs)
+    if not quick:
+        heatmap, hm_runs = ex.offset_heatmap(cfg)
+        heatmap["full_success_halfwidth_deg"] = _full_success_halfwidth(heatmap)
+        results["heatmap"] = heatmap
+        sens, sens_runs = ex.sensitivity(cfg)
+        _first_failures(sens)
+        results["sensitivity"] = sens
+        all_runs += hm_runs + sens_runs
+    worst = ex.worst_cases(all_runs)
+    for w in worst:
+        w["sensor_bias_magnitude_N"] = float(np.linalg.norm(w["sensor_bias_N"]))
+    results["worst_cases"] = worst
+    results["meta"]["wall_time_s"] = time.perf_counter() - start
+    (out_dir / RESULTS).write_text(json.dumps(results, indent=1) + "\n")
+    return replot(out_dir)
+
+
+def replot(out: str | Path) -> Path:
+    """Redraw every figure and the report from DIR/results.json (nothing is re-run)."""
+    out_dir = Path(out)
+    path = out_dir / RESULTS
+    if not path.is_file():
+        raise CapError(f"{path} not found: run `cap bench --out {out_dir}` first")
+    results = json.loads(path.read_text())
+    figures = draw_all(out_dir, results)
+    return write_report(out_dir, results, figures)
