@@ -194,6 +194,88 @@ def cmd_view(args: argparse.Namespace) -> int:
     return 0
 
 
+# --- cap lfo --------------------------------------------------------------------------------
+def cmd_lfo(args: argparse.Namespace) -> int:
+    from constraint_aware.lfo.demo import GRASP_TYPES, load
+    from constraint_aware.lfo.infer import infer_skill
+
+    if args.grasp and args.grasp not in GRASP_TYPES:
+        raise CapError(f"grasp {args.grasp!r}; valid names: {', '.join(GRASP_TYPES)}")
+    demo = load(args.demo)
+    skill = infer_skill(demo, grasp_override=args.grasp)
+    out: dict[str, Any] = {"demo": str(args.demo), "skill": skill.to_dict()}
+    if not args.json:
+        _print_skill(skill)
+    if args.execute:
+        from constraint_aware.lfo.execute import execute
+
+        record, info = execute(skill, controller=args.controller, seed=args.seed)
+        out["execution"] = {**info, **record.summary()}
+        if not args.json:
+            s = record.summary()
+            scale, unit = (
+                (57.29577951308232, "deg")
+                if skill.constraint_type == "revolute"
+                else (
+                    100.0,
+                    "cm",
+                )
+            )
+            console.print(
+                f"executed on {info['task']} with the {s['controller']} controller: "
+                f"[{'green' if record.success else 'red'}]{record.outcome}[/] "
+                f"{s['progress'] * scale:.1f} {unit} in {s['steps']} steps, peak |F| "
+                f"{s['peak_force_N']:.1f} N (initial-direction error vs the task "
+                f"{info['initial_direction_error_deg']:.1f} deg)"
+                + (f" ({record.reason})" if record.reason else ""),
+                soft_wrap=True,
+            )
+        if args.record:
+            record.save(args.record)
+    if args.json:
+        print(json.dumps(out, indent=1))
+    if args.execute and not out["execution"]["success"]:
+        return 1
+    return 0
+
+
+def _print_skill(skill: Any) -> None:
+    def vec(v: list[float] | None) -> str:
+        return "-" if v is None else "(" + ", ".join(f"{x:+.3f}" for x in v) + ")"
+
+    u = skill.uncertainty
+    table = Table(title="skill parameters from the demonstration", show_header=False)
+    table.add_row("constraint", skill.constraint_type)
+    table.add_row(
+        "workplane normal",
+        vec(skill.workplane_normal)
+        + (f"  +- {u['normal_std_deg']:.1f} deg" if "normal_std_deg" in u else ""),
+    )
+    table.add_row("initial direction", vec(skill.initial_direction))
+    if skill.radius is not None:
+        table.add_row(
+            "radius",
+            f"{skill.radius:.3f} m  +- {u['radius_std_m']:.3f} m (arc {u['arc_deg']:.0f} deg)",
+        )
+        table.add_row("centre", vec(skill.centre))
+    table.add_row(
+        "grasp",
+        f"{skill.grasp}"
+        + (" (fixed orientation: torque policy)" if skill.fixed_orientation else ""),
+    )
+    geo = skill.evidence["geometry"]
+    table.add_row(
+        "geometry",
+        f"{geo['verdict']}: line RMS {geo['line_rms_m'] * 1000:.1f} mm"
+        + (f", circle RMS {geo['circle_rms_m'] * 1000:.1f} mm" if "circle_rms_m" in geo else ""),
+    )
+    words = skill.evidence["words"]
+    table.add_row("words", f"{words['constraint']}: {words['reason']}")
+    console.print(table)
+    for w in skill.warnings:
+        console.print(f"[yellow]note:[/] {w}", soft_wrap=True)
+
+
 # --- cap bench ------------------------------------------------------------------------------
 def cmd_bench(args: argparse.Namespace) -> int:
     import time
@@ -270,6 +352,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, help="processes (default: every core)")
     p.add_argument("--replot", metavar="DIR", help="redraw figures and report from DIR only")
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("lfo", help="skill parameters from a demonstration (and run them)")
+    p.add_argument("demo", help="demonstration .json (cap-demo/1) or a t,x,y,z .csv")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    p.add_argument("--execute", action="store_true", help="run the skill on the simulated task")
+    p.add_argument("--grasp", help="override the force-exertion type")
+    p.add_argument("--controller", default="policy", help="policy, classical, projection, fixed")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--record", help="save the execution's run record here (.json)")
+    p.set_defaults(func=cmd_lfo)
 
     p = sub.add_parser("view", help="open MuJoCo's interactive viewer on a task")
     p.add_argument("task")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -83,8 +84,14 @@ def run(
     policy: ConstraintAwarePolicy | None = None,
     controller: DirectionController | None = None,
     on_step: Callable[[ManipulationSim], None] | None = None,
+    initial_direction: FloatArray | None = None,
+    executor_overrides: dict[str, object] | None = None,
 ) -> tuple[RunRecord, ManipulationSim]:
-    """Build the task, grasp, and run the controller from d0 = u rotated by `offset_deg`."""
+    """Build the task, grasp, and run the controller from d0 = u rotated by `offset_deg`.
+
+    initial_direction (3,) replaces that d0 and executor_overrides replace ExecutorConfig
+    fields: how a demonstration's estimates (LfO) drive a run instead of the task's truth.
+    """
     task = build_task(spec)
     sim = NoisySensorSim(
         task,
@@ -93,12 +100,18 @@ def run(
         np.asarray(spec.sensor_bias, dtype=float),
     )
     sim.reset()
-    normal = np.asarray(task.workplane_normal, dtype=float)
-    d0 = rotate_about(sim.admissible_direction(), normal, math.radians(spec.offset_deg))
     cfg = executor_config(task, spec.torque_policy)
+    if executor_overrides:
+        cfg = dataclasses.replace(cfg, **executor_overrides)  # type: ignore[arg-type]
+    assert cfg.workplane_normal is not None
+    normal = np.asarray(cfg.workplane_normal, dtype=float)
+    if initial_direction is not None:
+        d0 = np.asarray(initial_direction, dtype=float)
+    else:
+        d0 = rotate_about(sim.admissible_direction(), normal, math.radians(spec.offset_deg))
     rate = None
-    if task.constraint_type == "revolute":
-        rate = cfg.step_length / CONTROL_PERIOD / task.object.radius  # w_d = v_d / r
+    if cfg.constraint_type == "revolute" and cfg.rotation_radius:
+        rate = cfg.step_length / CONTROL_PERIOD / cfg.rotation_radius  # w_d = v_d / r
     ctrl = controller or make_controller(
         spec.controller, policy, rate, normal, dict(spec.controller_params)
     )

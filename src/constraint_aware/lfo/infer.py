@@ -1,0 +1,219 @@
+"""From a demonstration to skill parameters: constraint, workplane, radius, direction, grasp.
+
+Geometry and words are judged separately, then combined:
+- geometry: a line and (if the points span a plane) a circle are fitted; the path is an arc when
+  the circle explains it much better than the line (RMS ratio below GEOMETRY_RATIO) over at least
+  MIN_ARC_DEG with a radius below MAX_RADIUS; it is a line when the circle explains nothing more
+  (no circle, a huge radius, or ratio above LINE_RATIO) and the path is long enough that a hinge
+  of radius LINE_RADIUS would have bent it by more than twice the line's RMS; anything else
+  (short paths, shallow arcs within the noise) is ambiguous.
+- words: `lexicon.constraint_from_words`.
+- unambiguous geometry decides; ambiguous geometry defers to the words; disagreement is
+  reported with the evidence; when neither knows, the type is "unknown".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from constraint_aware.errors import CapError
+from constraint_aware.geometry import FloatArray, unit
+from constraint_aware.lfo.demo import Demonstration
+from constraint_aware.lfo.fitting import (
+    MIN_ARC_DEG,
+    FitError,
+    fit_circle,
+    fit_line,
+    fit_plane,
+    initial_direction,
+    outlier_mask,
+)
+from constraint_aware.lfo.lexicon import constraint_from_words, grasp_for
+
+GEOMETRY_RATIO = 0.35  # circle RMS / line RMS below this: an arc
+LINE_RATIO = 0.7  # circle RMS / line RMS above this: the circle explains nothing more
+LINE_RADIUS = 0.6  # [m] a line is conclusive when a hinge this large would visibly bend it
+MAX_RADIUS = 3.0  # [m] a fitted radius beyond this is a line
+MIN_PATH = 0.03  # [m] shorter demonstrations say nothing about the constraint
+
+
+class InferenceError(CapError, ValueError):
+    """The demonstration cannot yield skill parameters; the message says why."""
+
+
+@dataclass
+class SkillParameters:
+    """What the executor needs, with the evidence behind each estimate. Units: m, deg."""
+
+    constraint_type: str  # prismatic | revolute | unknown
+    workplane_normal: list[float]  # (3,) unit; revolute: the motion turns positively about it
+    initial_direction: list[float]  # (3,) unit, in the workplane
+    grasp: str  # force-exertion type
+    fixed_orientation: bool  # the grasp fixes the hand-object orientation (torque policy)
+    radius: float | None = None  # [m] revolute
+    centre: list[float] | None = None  # (3,) [m] revolute
+    axis: list[float] | None = None  # (3,) revolute rotation axis
+    uncertainty: dict[str, float] = field(default_factory=dict)
+    evidence: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def classify_geometry(positions: FloatArray) -> dict[str, Any]:
+    """Line vs arc from the fits: {'verdict', 'line_rms_m', 'circle_rms_m', ...}."""
+    line = fit_line(positions)
+    out: dict[str, Any] = {"line_rms_m": line.rms, "path_length_m": line.length}
+    try:
+        circle = fit_circle(positions)
+    except FitError as exc:
+        out["circle"] = f"no circle: {exc}"
+        sagitta = line.length**2 / (8.0 * LINE_RADIUS)
+        out["hinge_sagitta_m"] = sagitta
+        out["verdict"] = "line" if sagitta > 2.0 * line.rms else "ambiguous"
+        return out
+    out.update(circle_rms_m=circle.rms, radius_m=circle.radius, arc_deg=circle.arc_deg)
+    ratio = circle.rms / max(line.rms, 1e-12)
+    out["rms_ratio"] = ratio
+    # how far a hinge of radius LINE_RADIUS would bend a path this long: if that would stand
+    # well above the scatter, a straight path rules hinges out
+    sagitta = line.length**2 / (8.0 * LINE_RADIUS)
+    out["hinge_sagitta_m"] = sagitta
+    conclusive = sagitta > 2.0 * line.rms
+    if circle.radius <= MAX_RADIUS and ratio < GEOMETRY_RATIO and circle.arc_deg >= MIN_ARC_DEG:
+        out["verdict"] = "arc"
+    elif conclusive and (circle.radius > MAX_RADIUS or ratio > LINE_RATIO):
+        out["verdict"] = "line"
+    else:
+        out["verdict"] = "ambiguous"
+    return out
+
+
+def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> SkillParameters:
+    """Skill parameters of one demonstration (raises InferenceError when none can be had)."""
+    glitches = outlier_mask(demo.position)
+    pos, times = demo.position[~glitches], demo.t[~glitches]
+    travel = float(np.linalg.norm(pos.max(axis=0) - pos.min(axis=0)))
+    if travel < MIN_PATH:
+        raise InferenceError(
+            f"trajectory too short: the hand moved {travel * 100:.1f} cm "
+            f"(< {MIN_PATH * 100:.0f} cm)"
+        )
+    words = constraint_from_words(demo.instruction, demo.object)
+    geometry = classify_geometry(pos)
+    warnings: list[str] = []
+    verdict = {"line": "prismatic", "arc": "revolute"}.get(geometry["verdict"])
+    if verdict is not None:
+        constraint = verdict
+        if words.constraint not in ("unknown", verdict):
+            warnings.append(
+                f"words suggest {words.constraint} ({words.reason}) but the hand moved along "
+                f"{'an arc' if verdict == 'revolute' else 'a line'}; geometry decides: {verdict}"
+            )
+        elif words.constraint == "unknown":
+            warnings.append(f"words unknown ({words.reason}); geometry decides: {verdict}")
+    elif words.constraint != "unknown":
+        constraint = words.constraint
+        warnings.append(f"geometry ambiguous; words decide: {constraint} ({words.reason})")
+    else:
+        constraint = "unknown"
+        warnings.append(f"neither words ({words.reason}) nor geometry decide the constraint")
+
+    uncertainty: dict[str, float] = {}
+    radius = centre = axis = None
+    if constraint == "revolute":
+        try:
+            circle = fit_circle(pos)
+        except FitError as exc:
+            raise InferenceError(f"revolute constraint but {exc}") from exc
+        normal = circle.axis
+        radius, centre, axis = circle.radius, circle.centre.tolist(), circle.axis.tolist()
+        plane = fit_plane(pos)
+        uncertainty.update(
+            radius_std_m=circle.radius_std,
+            centre_std_m=circle.centre_std,
+            circle_rms_m=circle.rms,
+            normal_std_deg=plane.normal_std_deg,
+            plane_rms_m=plane.rms,
+            arc_deg=circle.arc_deg,
+        )
+    else:
+        normal, plane_note = _prismatic_workplane(pos)
+        if plane_note:
+            warnings.append(plane_note)
+        uncertainty["line_rms_m"] = geometry["line_rms_m"]
+    start = _motion_start(pos)
+    if constraint == "revolute":
+        # the arc's tangent at the resting start position, in the sense of the motion
+        assert centre is not None
+        rest = np.median(pos[: max(start, 3)], axis=0)
+        direction = unit(np.cross(normal, rest - np.asarray(centre)))
+    else:
+        line = fit_line(pos[start:])
+        direction = line.direction
+    direction = unit(direction - float(direction @ normal) * normal)
+    start_dir, start_rms = initial_direction(pos, times)
+    uncertainty["initial_direction_rms_m"] = start_rms
+    geometry["start_segment_direction"] = start_dir.tolist()
+    geometry["glitches_removed"] = int(glitches.sum())
+
+    noun = words.noun
+    grasp, fixed, source = grasp_for(noun, constraint)
+    if demo.grasp_hint:
+        grasp, source = demo.grasp_hint, "the demonstration's grasp hint"
+    if grasp_override:
+        grasp, source = grasp_override, "user override"
+    return SkillParameters(
+        constraint_type=constraint,
+        workplane_normal=unit(normal).tolist(),
+        initial_direction=direction.tolist(),
+        grasp=grasp,
+        fixed_orientation=fixed and constraint == "revolute",
+        radius=radius,
+        centre=centre,
+        axis=axis,
+        uncertainty=uncertainty,
+        evidence={"words": asdict(words), "geometry": geometry, "grasp_source": source},
+        warnings=warnings,
+    )
+
+
+def _motion_start(pos: FloatArray, moved: float = 0.01) -> int:
+    """Index of the first sample 1 cm away from the median resting position at the start."""
+    rest = np.median(pos[: max(3, len(pos) // 20)], axis=0)
+    away = np.flatnonzero(np.linalg.norm(pos - rest, axis=1) > moved)
+    return int(max(away[0] - 1, 0)) if away.size else 0
+
+
+def _prismatic_workplane(pos: FloatArray) -> tuple[FloatArray, str]:
+    """A line does not fix a plane: fit one if the path spans it, else take the vertical plane
+    through the line (the plane across a horizontal bar handle; README: LfO)."""
+    try:
+        plane = fit_plane(pos)
+        if plane.extent[1] > 0.2 * plane.extent[0]:
+            return plane.normal, ""
+    except FitError:
+        pass
+    line = fit_line(pos).direction
+    normal = np.cross(line, [0.0, 0.0, 1.0])
+    if np.linalg.norm(normal) < 0.1:  # a vertical line
+        normal = np.cross(line, [1.0, 0.0, 0.0])
+    return unit(normal), (
+        "the path is a line, which fixes no plane: workplane = the vertical plane through it"
+    )
+
+
+def radius_error_pct(estimate: float, truth: float) -> float:
+    return abs(estimate - truth) / truth * 100.0
+
+
+def angle_between_deg(a: FloatArray, b: FloatArray, unsigned_axis: bool = False) -> float:
+    c = float(np.clip(unit(a) @ unit(b), -1.0, 1.0))
+    if unsigned_axis:
+        c = abs(c)
+    return math.degrees(math.acos(c))

@@ -1,0 +1,108 @@
+"""From words to a constraint type and a grasp: the documented lexicon and grasp table.
+
+Constraint type from the instruction (paper section 4): each object noun and each verb votes.
+Nouns are the stronger evidence ("open" fits drawers and doors alike), so a known noun decides
+and the verb only breaks a tie; unknown words give "unknown", never a guess.
+
+| words                                   | constraint |
+|-----------------------------------------|------------|
+| drawer, plate, tray, pole, rod, slider,  | prismatic  |
+| sliding door, window (sash)              |            |
+| door, lid, handle, crank, knob, valve,  | revolute   |
+| wheel, lever, flap, gate                 |            |
+| verbs slide, pull out, push in           | prismatic  |
+| verbs rotate, turn, swing, crank         | revolute   |
+| verbs open, close, pull, push, move      | (neutral)  |
+
+Grasp (force-exertion type, Saito et al. 2022) from the object, else from the constraint:
+
+| object                                  | force-exertion type     | fixed orientation |
+|-----------------------------------------|-------------------------|-------------------|
+| drawer, door, gate, sliding door, flap  | lazy closure            | no                |
+| pole, rod, lever                        | active-force closure    | no                |
+| plate, tray                             | passive-force closure   | no                |
+| handle, crank, knob, valve, wheel, lid  | passive-force closure   | yes               |
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+PRISMATIC_NOUNS = ("sliding door", "drawer", "plate", "tray", "pole", "rod", "slider", "window")
+REVOLUTE_NOUNS = (
+    "door", "lid", "handle", "crank", "knob", "valve", "wheel", "lever", "flap", "gate",
+)  # fmt: skip
+PRISMATIC_VERBS = ("pull out", "push in", "slide")
+REVOLUTE_VERBS = ("rotate", "turn", "swing", "crank")
+NEUTRAL_VERBS = ("open", "close", "pull", "push", "move")
+
+GRASP_TABLE: dict[str, tuple[str, bool]] = {
+    "drawer": ("lazy_closure", False),
+    "door": ("lazy_closure", False),
+    "sliding door": ("lazy_closure", False),
+    "gate": ("lazy_closure", False),
+    "flap": ("lazy_closure", False),
+    "window": ("lazy_closure", False),
+    "pole": ("active_force_closure", False),
+    "rod": ("active_force_closure", False),
+    "lever": ("active_force_closure", False),
+    "slider": ("active_force_closure", False),
+    "plate": ("passive_force_closure", False),
+    "tray": ("passive_force_closure", False),
+    "handle": ("passive_force_closure", True),
+    "crank": ("passive_force_closure", True),
+    "knob": ("passive_force_closure", True),
+    "valve": ("passive_force_closure", True),
+    "wheel": ("passive_force_closure", True),
+    "lid": ("passive_force_closure", True),
+}
+DEFAULT_GRASP = {"prismatic": ("lazy_closure", False), "revolute": ("lazy_closure", False)}
+
+
+@dataclass(frozen=True)
+class WordEvidence:
+    constraint: str  # "prismatic", "revolute" or "unknown"
+    noun: str | None  # the object noun that was recognised
+    verb: str | None
+    reason: str
+
+
+def _find(text: str, words: tuple[str, ...]) -> str | None:
+    for w in sorted(words, key=len, reverse=True):  # "sliding door" before "door"
+        if re.search(rf"\b{re.escape(w)}s?\b", text):
+            return w
+    return None
+
+
+def constraint_from_words(instruction: str, object_name: str = "") -> WordEvidence:
+    """The constraint type the words suggest, with the words that decided it."""
+    text = f"{instruction} {object_name}".lower()
+    noun_p = _find(text, PRISMATIC_NOUNS)
+    noun_r = _find(text, REVOLUTE_NOUNS)
+    # "sliding door" contains "door": the longer prismatic phrase wins
+    if noun_p and noun_r and noun_r in noun_p:
+        noun_r = None
+    verb_p = _find(text, PRISMATIC_VERBS)
+    verb_r = _find(text, REVOLUTE_VERBS)
+    verb = verb_p or verb_r or _find(text, NEUTRAL_VERBS)
+    if noun_p and not noun_r:
+        return WordEvidence("prismatic", noun_p, verb, f"object '{noun_p}' slides on a guide")
+    if noun_r and not noun_p:
+        return WordEvidence("revolute", noun_r, verb, f"object '{noun_r}' turns on a hinge")
+    if verb_p and not verb_r:
+        return WordEvidence("prismatic", noun_p or noun_r, verb_p, f"verb '{verb_p}'")
+    if verb_r and not verb_p:
+        return WordEvidence("revolute", noun_p or noun_r, verb_r, f"verb '{verb_r}'")
+    if noun_p and noun_r:
+        return WordEvidence("unknown", noun_p, verb, f"words name both '{noun_p}' and '{noun_r}'")
+    return WordEvidence("unknown", None, verb, "no known object or verb in the words")
+
+
+def grasp_for(noun: str | None, constraint: str) -> tuple[str, bool, str]:
+    """(force-exertion type, fixed orientation, source) from the grasp table."""
+    if noun is not None and noun in GRASP_TABLE:
+        g, fixed = GRASP_TABLE[noun]
+        return g, fixed, f"grasp table: {noun}"
+    g, fixed = DEFAULT_GRASP.get(constraint, ("lazy_closure", False))
+    return g, fixed, f"default for a {constraint} constraint"

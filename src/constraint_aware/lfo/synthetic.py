@@ -1,0 +1,123 @@
+"""Synthetic demonstrations with ground truth: drawers, doors and handles as a hand tracker
+would report them (Gaussian noise, tremor, outliers, varying speed, partial arcs)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from constraint_aware.geometry import FloatArray, random_perpendicular, random_unit, unit
+from constraint_aware.lfo.demo import Demonstration
+
+Kind = Literal["drawer", "door", "handle"]
+KINDS: tuple[Kind, ...] = ("drawer", "door", "handle")
+INSTRUCTIONS = {
+    "drawer": ("open the drawer", "drawer"),
+    "door": ("open the door", "door"),
+    "handle": ("turn the handle", "handle"),
+}
+
+
+@dataclass(frozen=True)
+class TrackingNoise:
+    """How a hand tracker corrupts the path. Units: m, Hz."""
+
+    noise: float = 0.005  # [m] Gaussian std per axis
+    tremor: float = 0.002  # [m] amplitude of an 8-12 Hz tremor
+    outlier_fraction: float = 0.02  # share of samples replaced by glitches
+    outlier_size: float = 0.08  # [m] typical glitch distance
+    speed_variation: float = 0.5  # relative speed modulation (0: constant speed)
+    rest_time: float = 0.3  # [s] the hand rests before and after the motion
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    kind: Kind
+    constraint_type: str
+    workplane_normal: FloatArray  # (3,), motion turns positively about it (revolute)
+    initial_direction: FloatArray  # (3,)
+    radius: float | None  # [m]
+    centre: FloatArray | None  # (3,) [m]
+    arc_deg: float | None
+
+
+def _progress(rng: np.random.Generator, n: int, duration: float, variation: float) -> FloatArray:
+    """Progress s in [0, 1] at n equally spaced samples (monotone, speed-modulated)."""
+    t = np.linspace(0.0, duration, n)
+    phase = rng.uniform(0, 2 * math.pi)
+    speed = 1.0 + variation * np.sin(2 * math.pi * t / duration * rng.uniform(0.5, 1.5) + phase)
+    speed = np.clip(speed, 0.1, None)
+    s = np.concatenate([[0.0], np.cumsum(speed[1:] * np.diff(t))])
+    return np.asarray(s / s[-1])
+
+
+def make_demo(
+    kind: Kind,
+    rng: np.random.Generator,
+    tracking: TrackingNoise | None = None,
+    rate: float = 30.0,
+    arc_deg: float | None = None,
+    radius: float | None = None,
+    length: float | None = None,
+    frame: tuple[FloatArray, FloatArray] | None = None,
+) -> tuple[Demonstration, GroundTruth]:
+    """One demonstration and its truth.
+
+    frame: (start point (3,), initial direction (3,)) to place the motion; by default random.
+    For revolute kinds the workplane is horizontal (doors, table-top cranks) unless `frame`
+    implies otherwise; for drawers the motion is a straight pull.
+    """
+    tr = tracking or TrackingNoise()
+    if kind == "drawer":
+        length = length or rng.uniform(0.2, 0.35)
+        start = frame[0] if frame else rng.uniform(-0.3, 0.3, 3) + np.array([0.5, 0.0, 0.8])
+        u = unit(frame[1]) if frame else unit(np.array([1.0, rng.uniform(-0.3, 0.3), 0.0]))
+        duration = length / 0.1
+        n = int(duration * rate) + 1
+        s = _progress(rng, n, duration, tr.speed_variation)
+        path = start + np.outer(s * length, u)
+        normal = unit(np.cross(u, [0.0, 0.0, 1.0]))
+        truth = GroundTruth(kind, "prismatic", normal, u, None, None, None)
+    else:
+        if kind == "door":
+            radius = radius or rng.uniform(0.4, 0.9)
+            arc_deg = arc_deg or rng.uniform(45.0, 90.0)
+        else:
+            radius = radius or rng.uniform(0.08, 0.2)
+            arc_deg = arc_deg or rng.uniform(60.0, 180.0)
+        axis = np.array([0.0, 0.0, 1.0])
+        if frame:
+            start, tangent = frame[0], unit(frame[1])
+        else:
+            start = rng.uniform(-0.3, 0.3, 3) + np.array([0.5, 0.0, 0.9])
+            tangent = unit(np.array([*random_unit(rng, 1)[0, :2], 0.0]))
+        radial = np.cross(axis, tangent)  # from the hand toward the centre (positive turn)
+        centre = start + radius * radial
+        r0 = start - centre
+        sweep = math.radians(arc_deg)
+        duration = radius * sweep / 0.1
+        n = int(duration * rate) + 1
+        s = _progress(rng, n, duration, tr.speed_variation)
+        ang = s * sweep
+        path = centre + np.cos(ang)[:, None] * r0 + np.sin(ang)[:, None] * np.cross(axis, r0)
+        truth = GroundTruth(kind, "revolute", axis, tangent, radius, centre, arc_deg)
+    # rest before and after, then the tracker's corruption
+    n_rest = int(tr.rest_time * rate)
+    path = np.concatenate([np.repeat(path[:1], n_rest, 0), path, np.repeat(path[-1:], n_rest, 0)])
+    path = np.asarray(path, dtype=np.float64)
+    dt = 1.0 / rate
+    stamps = (np.arange(len(path)) + rng.uniform(-0.2, 0.2, len(path))) * dt  # jittered
+    freq = rng.uniform(8.0, 12.0)
+    tremor_dir = random_perpendicular(rng, np.array([[0.0, 0.0, 1.0]]))[0]
+    path = path + tr.tremor * np.sin(2 * math.pi * freq * stamps)[:, None] * tremor_dir
+    path = path + rng.normal(0.0, tr.noise, path.shape)
+    n_out = round(tr.outlier_fraction * len(path))
+    if n_out:
+        idx = rng.choice(np.arange(n_rest, len(path) - n_rest), size=n_out, replace=False)
+        jumps = random_unit(rng, n_out) * tr.outlier_size * rng.uniform(0.5, 1.5, (n_out, 1))
+        path[idx] = path[idx] + jumps
+    instruction, obj = INSTRUCTIONS[kind]
+    return Demonstration(instruction, obj, stamps, path), truth
