@@ -74,20 +74,13 @@ def act_latency_us(repeats: int, calls: int = 2000) -> dict[str, float]:
     }
     try:
         import torch
-        from stable_baselines3 import PPO
 
+        from constraint_aware.training.ppo import build_model, make_config
         from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
     except ImportError:
         return out
     torch.set_num_threads(1)
-    model = PPO(
-        "MlpPolicy",
-        BatchedSingleSystemVecEnv(8),
-        n_steps=5,
-        batch_size=40,
-        policy_kwargs={"net_arch": [256, 256], "activation_fn": torch.nn.Tanh},
-        device="cpu",
-    )
+    model = build_model(BatchedSingleSystemVecEnv(8), make_config("fast", n_envs=8, batch_size=40))
     obs = np.concatenate([f_hat, dirs], axis=1).astype(np.float32)
     out["sb3_predict_median_us"] = per_call(lambda i: model.predict(obs[i], deterministic=True))
     out["sb3_over_numpy_ratio"] = out["sb3_predict_median_us"] / out["act_median_us"]

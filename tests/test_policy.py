@@ -137,20 +137,11 @@ def test_runtime_does_not_import_torch() -> None:
 def test_matches_stable_baselines3_deterministic_action(tmp_path: Path) -> None:
     torch = pytest.importorskip("torch")
     pytest.importorskip("stable_baselines3")
-    from stable_baselines3 import PPO
-
-    from constraint_aware.training.ppo import export_policy
+    from constraint_aware.training.ppo import build_model, export_policy, make_config
     from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
 
-    model = PPO(
-        "MlpPolicy",
-        BatchedSingleSystemVecEnv(8),
-        n_steps=5,
-        batch_size=40,
-        policy_kwargs={"net_arch": [256, 256], "activation_fn": torch.nn.Tanh},
-        seed=3,
-        device="cpu",
-    )
+    config = make_config("fast", n_envs=8, batch_size=40, seed=3)
+    model = build_model(BatchedSingleSystemVecEnv(8), config)
     # give the untrained net outputs beyond [-1, 1] so clipping is covered too
     with torch.no_grad():
         head = model.policy.action_net

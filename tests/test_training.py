@@ -41,3 +41,12 @@ def test_paper_preset_uses_paper_values() -> None:
     assert paper.n_envs * paper.env.episode_length == 6000
     assert 6000 % paper.batch_size == 0
     assert paper.net_arch == (256, 256)
+
+
+@pytest.mark.slow
+def test_same_seed_same_weights(tmp_path: Path) -> None:
+    config = make_config("fast", total_timesteps=24_000, eval_every=2, eval_episodes=500)
+    a = train(config, tmp_path / "a", final_eval_episodes=200).policy.layers
+    b = train(config, tmp_path / "b", final_eval_episodes=200).policy.layers
+    for (wa, ba), (wb, bb) in zip(a, b, strict=True):
+        assert (wa == wb).all() and (ba == bb).all()

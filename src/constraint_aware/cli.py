@@ -149,23 +149,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     record, _sim = run(spec, policy=policy, on_step=on_step)
     summary = record.summary()
-    unit, scale = (
-        ("deg", 57.29577951308232)
-        if summary["constraint_type"] == "revolute"
-        else (
-            "cm",
-            100.0,
-        )
-    )
-    goal = summary["success_progress"] * scale
-    console.print(
-        f"{args.task} / {record.label['controller']} / offset {args.offset:+.1f} deg: "
-        f"[{'green' if record.success else 'red'}]{record.outcome}[/] "
-        f"{summary['progress'] * scale:.1f}/{goal:.0f} {unit} in {summary['steps']} steps, "
-        f"peak |F| {summary['peak_force_N']:.1f} N, final angle {summary['final_angle_deg']:.1f} "
-        f"deg, slip {summary['slip_m'] * 100:.1f} cm"
-        + (f" ({record.reason})" if record.reason else ""),
-        soft_wrap=True,
+    _print_outcome(
+        f"{args.task} / {record.label['controller']} / offset {args.offset:+.1f} deg",
+        record,
+        f"final angle {summary['final_angle_deg']:.1f} deg, slip {summary['slip_m'] * 100:.1f} cm",
     )
     if args.json:
         record.save(args.json)
@@ -176,6 +163,19 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         save_video(frames, args.video, fps=10)
     return 0
+
+
+def _print_outcome(head: str, record: Any, tail: str) -> None:
+    """One line: outcome, progress toward the goal, steps, peak force, then `tail`."""
+    s = record.summary()
+    scale, unit = (57.29577951308232, "deg") if s["constraint_type"] == "revolute" else (100, "cm")
+    console.print(
+        f"{head}: [{'green' if record.success else 'red'}]{record.outcome}[/] "
+        f"{s['progress'] * scale:.1f}/{s['success_progress'] * scale:.0f} {unit} in "
+        f"{s['steps']} steps, peak |F| {s['peak_force_N']:.1f} N, {tail}"
+        + (f" ({record.reason})" if record.reason else ""),
+        soft_wrap=True,
+    )
 
 
 def cmd_view(args: argparse.Namespace) -> int:
@@ -212,23 +212,11 @@ def cmd_lfo(args: argparse.Namespace) -> int:
         record, info = execute(skill, controller=args.controller, seed=args.seed)
         out["execution"] = {**info, **record.summary()}
         if not args.json:
-            s = record.summary()
-            scale, unit = (
-                (57.29577951308232, "deg")
-                if skill.constraint_type == "revolute"
-                else (
-                    100.0,
-                    "cm",
-                )
-            )
-            console.print(
-                f"executed on {info['task']} with the {s['controller']} controller: "
-                f"[{'green' if record.success else 'red'}]{record.outcome}[/] "
-                f"{s['progress'] * scale:.1f} {unit} in {s['steps']} steps, peak |F| "
-                f"{s['peak_force_N']:.1f} N (initial-direction error vs the task "
-                f"{info['initial_direction_error_deg']:.1f} deg)"
-                + (f" ({record.reason})" if record.reason else ""),
-                soft_wrap=True,
+            _print_outcome(
+                f"executed on {info['task']} with the {record.label['controller']} controller",
+                record,
+                "initial-direction error vs the task "
+                f"{info['initial_direction_error_deg']:.1f} deg",
             )
         if args.record:
             record.save(args.record)

@@ -14,6 +14,7 @@ import numpy as np
 from constraint_aware.bench.experiments import FIG6, FIG11, FIG12
 from constraint_aware.control.plots import plot_trajectory
 from constraint_aware.control.record import RunRecord
+from constraint_aware.figio import save_figure
 from constraint_aware.training.curve import plot_learning_curve
 
 COLORS = {
@@ -37,10 +38,7 @@ def _curves(ax_a: Any, ax_f: Any, rec: RunRecord, label: str) -> None:
 
 
 def _finish(fig: Any, path: Path) -> str:
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path.name
+    return save_figure(fig, path, dpi=100).name
 
 
 def fig_learning(out: Path, results: dict[str, Any]) -> str:

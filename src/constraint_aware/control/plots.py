@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from constraint_aware.control.record import RunRecord
+from constraint_aware.figio import save_figure
 
 
 def plot_run(record: RunRecord, out_png: str | Path, title: str | None = None) -> Path:
@@ -36,12 +37,7 @@ def plot_run(record: RunRecord, out_png: str | Path, title: str | None = None) -
         f": {record.outcome}"
     )
     fig.suptitle(title or default, fontsize=10)
-    fig.tight_layout()
-    out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out_png)
 
 
 def plot_trajectory(
@@ -57,36 +53,17 @@ def plot_trajectory(
     ax.plot(xy[:, 0], xy[:, 1], "o", ms=3, color="black", label="tool point")
     idx = np.arange(0, len(xy), every)
     scale = 0.04  # [m] arrow length on the plot
-    ax.quiver(
-        *xy[idx].T,
-        *(dirs[idx, :2].T * scale),
-        color="tab:blue",
-        angles="xy",
-        scale_units="xy",
-        scale=1,
-        width=0.004,
-        label="motion direction d",
-    )
     fmax = max(float(np.max(np.linalg.norm(forces[:, :2], axis=1))), 1e-9)
-    ax.quiver(
-        *xy[idx].T,
-        *(forces[idx, :2].T / fmax * scale),
-        color="tab:red",
-        angles="xy",
-        scale_units="xy",
-        scale=1,
-        width=0.004,
-        label="force F (scaled)",
-    )
+    for vectors, color, label in (
+        (dirs[idx, :2] * scale, "tab:blue", "motion direction d"),
+        (forces[idx, :2] / fmax * scale, "tab:red", "force F (scaled)"),
+    ):
+        ax.quiver(*xy[idx].T, *vectors.T, color=color, angles="xy", scale_units="xy", scale=1,
+                  width=0.004, label=label)  # fmt: skip
     ax.set_aspect("equal")
     ax.set_xlabel("x [m] (from the start)")
     ax.set_ylabel("y [m]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     ax.set_title(title or f"{record.label.get('task')}: tool point, d and F", fontsize=10)
-    fig.tight_layout()
-    out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out_png)

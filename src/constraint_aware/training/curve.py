@@ -10,6 +10,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from constraint_aware.figio import save_figure
+
 
 def read_log(path: str | Path) -> dict[str, list[float]]:
     """Columns of a training log CSV as float lists."""
@@ -48,9 +50,4 @@ def plot_learning_curve(
     ax_r.legend(fontsize=8)
     ax_r.grid(True, alpha=0.3)
     fig.suptitle(title)
-    fig.tight_layout()
-    out = Path(out_png)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out
+    return save_figure(fig, out_png)

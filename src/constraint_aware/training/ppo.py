@@ -23,6 +23,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.torch_layers import MlpExtractor
+from stable_baselines3.common.vec_env import VecEnv
 
 import constraint_aware
 from constraint_aware.errors import UnknownNameError
@@ -216,16 +217,9 @@ def write_log(rows: list[dict[str, float]], path: Path) -> None:
             writer.writerow({k: f"{row[k]:.6g}" for k in LOG_COLUMNS})
 
 
-def train(
-    config: TrainConfig,
-    out_dir: str | Path | None = None,
-    on_progress: Callable[[int, dict[str, float] | None], None] | None = None,
-    final_eval_episodes: int = 10_000,
-) -> TrainResult:
-    """Train PPO on the batched analytic env; write policy, card and log to `out_dir`."""
-    torch.set_num_threads(config.torch_threads)
-    vec_env = BatchedSingleSystemVecEnv(config.n_envs, config.env, seed=config.seed)
-    model = PPO(
+def build_model(vec_env: VecEnv, config: TrainConfig) -> PPO:
+    """The PPO model of a config: MLP tanh policy and value nets (paper 5.1), on the CPU."""
+    return PPO(
         "MlpPolicy",
         vec_env,
         learning_rate=config.learning_rate,
@@ -245,6 +239,18 @@ def train(
         device="cpu",
         verbose=0,
     )
+
+
+def train(
+    config: TrainConfig,
+    out_dir: str | Path | None = None,
+    on_progress: Callable[[int, dict[str, float] | None], None] | None = None,
+    final_eval_episodes: int = 10_000,
+) -> TrainResult:
+    """Train PPO on the batched analytic env; write policy, card and log to `out_dir`."""
+    torch.set_num_threads(config.torch_threads)
+    vec_env = BatchedSingleSystemVecEnv(config.n_envs, config.env, seed=config.seed)
+    model = build_model(vec_env, config)
     callback = EvalCallback(config, vec_env, on_progress)
     start = time.perf_counter()
     model.learn(total_timesteps=config.total_timesteps, callback=callback)
