@@ -177,6 +177,8 @@ def fig_sensitivity(out: Path, results: dict[str, Any]) -> str:
             ax.grid(True, alpha=0.3)
             if name in ("joint friction x", "wrist stiffness"):
                 ax.set_xscale("log")
+                ax.minorticks_off()
+                ax.set_xticks(levels, [f"{v:g}" for v in levels], fontsize=7)
     axes[0, 0].set_ylabel("success rate (mean over tasks)")
     axes[1, 0].set_ylabel("peak |F| [N] (median over tasks)")
     axes[0, 0].legend(fontsize=7)
