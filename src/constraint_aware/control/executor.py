@@ -120,7 +120,7 @@ class Executor:
                 return record
             magnitude = float(np.linalg.norm(force))
             record.steps.append(
-                self._step_record(step, d, force, torque, pose.position, torque_policy)
+                self._step_record(step, d, force, magnitude, torque, pose.position, torque_policy)
             )
             if self.monitor is not None and self.monitor.succeeded():
                 record.finish("success", "", self.monitor)
@@ -208,6 +208,7 @@ class Executor:
         step: int,
         d: FloatArray,
         force: FloatArray,
+        force_norm: float,
         torque: FloatArray,
         hand: FloatArray,
         torque_policy: TorquePolicy | None,
@@ -219,7 +220,7 @@ class Executor:
             step=step,
             direction=d.tolist(),
             force=force.tolist(),
-            force_norm=float(np.linalg.norm(force)),
+            force_norm=force_norm,
             torque=torque.tolist(),
             hand_position=hand.tolist(),
             handle_position=m.handle_position().tolist() if m is not None else None,

@@ -74,6 +74,7 @@ class CircleFit:
     radius_std: float  # [m] 1-sigma
     centre_std: float  # [m] 1-sigma (in-plane, per axis, RMS)
     arc_deg: float  # [deg] angle swept from the first to the last point
+    plane: PlaneFit | None = None  # the plane fitted for it (None when the normal was given)
 
 
 def _require(points: FloatArray, n: int, what: str) -> None:
@@ -172,10 +173,11 @@ def fit_circle(points: FloatArray, normal: FloatArray | None = None) -> CircleFi
     too few points or an arc shorter than MIN_ARC_DEG.
     """
     _require(points, 5, "circle fit")
+    plane = None
     if normal is None:
         plane = fit_plane(points)
-        normal, inliers = plane.normal, plane.inliers
-        pts = points[inliers]
+        normal = plane.normal
+        pts = points[plane.inliers]
     else:
         pts = points
     origin = pts.mean(axis=0)
@@ -221,6 +223,7 @@ def fit_circle(points: FloatArray, normal: FloatArray | None = None) -> CircleFi
         radius_std=float(std[2]),
         centre_std=float(np.hypot(std[0], std[1]) / math.sqrt(2)),
         arc_deg=arc,
+        plane=plane,
     )
 
 

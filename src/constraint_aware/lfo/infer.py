@@ -25,6 +25,7 @@ from constraint_aware.geometry import FloatArray, unit
 from constraint_aware.lfo.demo import Demonstration
 from constraint_aware.lfo.fitting import (
     MIN_ARC_DEG,
+    CircleFit,
     FitError,
     fit_circle,
     fit_line,
@@ -65,8 +66,9 @@ class SkillParameters:
         return asdict(self)
 
 
-def classify_geometry(positions: FloatArray) -> dict[str, Any]:
-    """Line vs arc from the fits: {'verdict', 'line_rms_m', 'circle_rms_m', ...}."""
+def classify_geometry(positions: FloatArray) -> tuple[dict[str, Any], CircleFit | FitError]:
+    """Line vs arc from the fits: ({'verdict', 'line_rms_m', 'circle_rms_m', ...}, the circle
+    fit or the reason there is none)."""
     line = fit_line(positions)
     out: dict[str, Any] = {"line_rms_m": line.rms, "path_length_m": line.length}
     try:
@@ -76,7 +78,7 @@ def classify_geometry(positions: FloatArray) -> dict[str, Any]:
         sagitta = line.length**2 / (8.0 * LINE_RADIUS)
         out["hinge_sagitta_m"] = sagitta
         out["verdict"] = "line" if sagitta > 2.0 * line.rms else "ambiguous"
-        return out
+        return out, exc
     out.update(circle_rms_m=circle.rms, radius_m=circle.radius, arc_deg=circle.arc_deg)
     ratio = circle.rms / max(line.rms, 1e-12)
     out["rms_ratio"] = ratio
@@ -91,7 +93,7 @@ def classify_geometry(positions: FloatArray) -> dict[str, Any]:
         out["verdict"] = "line"
     else:
         out["verdict"] = "ambiguous"
-    return out
+    return out, circle
 
 
 def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> SkillParameters:
@@ -105,7 +107,7 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
             f"(< {MIN_PATH * 100:.0f} cm)"
         )
     words = constraint_from_words(demo.instruction, demo.object)
-    geometry = classify_geometry(pos)
+    geometry, circle = classify_geometry(pos)
     warnings: list[str] = []
     verdict = {"line": "prismatic", "arc": "revolute"}.get(geometry["verdict"])
     if verdict is not None:
@@ -127,13 +129,12 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
     uncertainty: dict[str, float] = {}
     radius = centre = axis = None
     if constraint == "revolute":
-        try:
-            circle = fit_circle(pos)
-        except FitError as exc:
-            raise InferenceError(f"revolute constraint but {exc}") from exc
+        if isinstance(circle, FitError):
+            raise InferenceError(f"revolute constraint but {circle}") from circle
         normal = circle.axis
         radius, centre, axis = circle.radius, circle.centre.tolist(), circle.axis.tolist()
-        plane = fit_plane(pos)
+        plane = circle.plane
+        assert plane is not None  # fitted without a given normal
         uncertainty.update(
             radius_std_m=circle.radius_std,
             centre_std_m=circle.centre_std,

@@ -99,13 +99,11 @@ class ManipulationSim:
         m = self.model
         # names -> ids, once
         self._arm_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in ARM_JOINTS])
-        self._arm_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in ARM_JOINTS])
         self._finger_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in FINGER_JOINTS])
         self._arm_act = np.array([m.actuator(j).id for j in ARM_JOINTS])
         self._finger_act = np.array([m.actuator(j).id for j in FINGER_JOINTS])
         self._obj_joint = m.joint(OBJECT_JOINT).id
         self._obj_qpos = int(m.jnt_qposadr[self._obj_joint])
-        self._hand_body = m.body(HAND_BODY).id
         self._wrist_site = m.site(WRIST_SITE).id
         self._tcp_site = m.site(TCP_SITE).id
         self._handle_site = m.site(HANDLE_SITE).id
@@ -119,7 +117,6 @@ class ManipulationSim:
         self._tcp_local = np.array([0.0, 0.0, task.hand.tcp_depth])
         self._target = np.zeros(6)
         self._grasp_rel: tuple[FloatArray, Rotation] | None = None
-        self.time_steps = 0
         self._filtered = np.zeros(6)
         self._touched = False
         self._next_pose: Pose | None = None
@@ -136,7 +133,7 @@ class ManipulationSim:
     # --- reset and grasp ------------------------------------------------------------------
     def grasp_pose(self) -> Pose:
         """The TCP pose at which the hand holds the handle (object at joint position 0)."""
-        mount = Rotation.from_matrix(self.task.hand_mount())
+        mount = self._mount
         pos = self.task.object.handle_position.copy()
         if self.task.object.handle == "knob":
             # palm face on the knob's top face: the TCP lies tcp_depth below it
@@ -170,7 +167,6 @@ class ManipulationSim:
             mujoco.mj_step(m, d, nstep=int(SETTLE_TIME / TIMESTEP))
         self._settle_filter()
         self._grasp_rel = self._hand_in_handle()
-        self.time_steps = 0
 
     # --- Robot protocol -------------------------------------------------------------------
     @property
@@ -240,7 +236,6 @@ class ManipulationSim:
         mujoco.mj_step(self.model, self.data, nstep=n - FILTER_STEPS)
         self._settle_filter()
         self._next_pose = None
-        self.time_steps += 1
 
     # --- TaskMonitor protocol -------------------------------------------------------------
     def joint_position(self) -> float:
