@@ -20,7 +20,9 @@ class ControlInput:
     force: (3,) [N] F = F_s - F_d, world frame (raw: not thresholded, not normalized);
     torque: (3,) [N m] about the tool point, offset removed; direction: (3,) unit d_t;
     dt: [s] control period; threshold: [N] below which |F| counts as no force;
-    workplane_normal: (3,) unit, when the workplane is known (assumption 4).
+    workplane_normal: (3,) unit, when the workplane is known (assumption 4);
+    step_force: [N] k*delta, the robot's translational impedance stiffness times the step
+    length (the force of one fully blocked step), when the robot reports its stiffness.
     """
 
     force: FloatArray
@@ -29,6 +31,7 @@ class ControlInput:
     dt: float
     threshold: float
     workplane_normal: FloatArray | None = None
+    step_force: float | None = None
 
 
 class DirectionController(Protocol):

@@ -107,6 +107,8 @@ class Executor:
         if not (np.all(np.isfinite(offset.force)) and np.all(np.isfinite(offset.torque))):
             return RunRecord.stopped(label, "nan: sensor returned NaN before moving", offset)
         record = RunRecord.start(label, offset.force, offset.torque)
+        stiffness = getattr(self.robot, "translational_stiffness", None)
+        step_force = None if stiffness is None else float(stiffness) * cfg.step_length
         target = self.robot.commanded_pose()
         contact = False
         quiet = 0
@@ -146,7 +148,9 @@ class Executor:
                 )
                 return record
 
-            inp = ControlInput(force, torque, d, self.robot.control_period, cfg.threshold, normal)
+            inp = ControlInput(
+                force, torque, d, self.robot.control_period, cfg.threshold, normal, step_force
+            )
             d_next = project_on_plane(unit(self.controller.next_direction(inp)), normal)
             rotation = self._hand_rotation(d, d_next, torque, normal, torque_policy, step)
             length = self.controller.step_length(cfg.step_length)

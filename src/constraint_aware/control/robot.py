@@ -17,7 +17,14 @@ __all__ = ["Pose", "Robot", "TaskMonitor", "Wrench"]
 
 
 class Robot(Protocol):
-    """A hand with a wrist force/torque sensor on a compliant arm."""
+    """A hand with a wrist force/torque sensor on a compliant arm.
+
+    Optional members, looked up with getattr by the executor:
+    - `grasp_contact() -> bool | None` (below);
+    - `translational_stiffness: float` [N/m], the arm's Cartesian impedance stiffness along the
+      motion; with the step length it gives the step force k*delta a policy may use;
+    - `hold() -> None`: stop moving and hold the current measured pose (called on every stop).
+    """
 
     @property
     def control_period(self) -> float:

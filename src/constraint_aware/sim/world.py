@@ -173,6 +173,11 @@ class ManipulationSim:
     def control_period(self) -> float:
         return CONTROL_PERIOD
 
+    @property
+    def translational_stiffness(self) -> float:
+        """[N/m] the wrist's Cartesian impedance stiffness (each axis)."""
+        return self.task.hand.translational_stiffness
+
     def _sample_wrench(self) -> FloatArray:
         """(6,) instantaneous (F_s, tau_s about the TCP), world frame."""
         d = self.data
