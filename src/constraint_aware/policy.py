@@ -26,7 +26,33 @@ OBSERVATION_LAYOUT = (
     "direction_y",
     "direction_z",
 )
+#: Observation layouts by name (issue 9). "history" adds the previous step's (F/|F|, d) (zeros
+#: at the first step); "magnitude" adds |F| / (k*delta), the force over the robot's step force.
+OBSERVATIONS: dict[str, tuple[str, ...]] = {
+    "paper": OBSERVATION_LAYOUT,
+    "history": OBSERVATION_LAYOUT + tuple(f"previous_{n}" for n in OBSERVATION_LAYOUT),
+    "magnitude": (*OBSERVATION_LAYOUT, "force_over_step_force"),
+}
+#: What each observation needs from the robot besides the force and d (the card's `inputs`).
+OBSERVATION_INPUTS: dict[str, tuple[str, ...]] = {
+    "paper": ("force", "direction"),
+    "history": ("force", "direction"),
+    "magnitude": ("force", "direction", "step_force"),
+}
+#: |F| / (k*delta) is clipped to this: beyond it the arm pushes far past one blocked step.
+MAGNITUDE_CLIP = 3.0
 DEFAULT_POLICY_NAME = "policy"
+
+
+def dead_band_card() -> dict[str, Any]:
+    """The card's `dead_band` entry: deadband.py's rule."""
+    from constraint_aware import deadband
+
+    return {
+        "floor_N": deadband.MIN_THRESHOLD,
+        "noise_sigmas": deadband.NOISE_SIGMAS,
+        "rule": "max(floor_N, noise_sigmas * per-axis std of the F_d samples) [N]",
+    }
 #: [N] default force threshold of `update_direction`, the training env's default.
 DEFAULT_THRESHOLD = 0.2
 
