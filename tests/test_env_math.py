@@ -163,7 +163,7 @@ def test_resistance_draws_follow_their_documented_ranges(rng: np.random.Generato
     v_nom = c.step_length / c.control_period
     free = (p.dry_friction == 0) & (p.damping == 0) & (p.mass == 0)
     assert abs(free.mean() - RESISTANCE["resistance_free_share"]) < 0.02
-    lo, hi = RESISTANCE["dry_friction"]
+    hi = RESISTANCE["dry_friction"][1]
     assert np.all(p.dry_friction <= hi * step_force + RESISTANCE["dry_friction_abs"][1] + 1e-9)
     assert np.all(p.damping * v_nom <= RESISTANCE["damping"][1] * step_force + 1e-9)
     a_nom = v_nom / c.control_period

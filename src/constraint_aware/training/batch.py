@@ -199,8 +199,10 @@ class SingleSystemBatch:
     def step(self, action: FloatArray) -> tuple[FloatArray, FloatArray, bool]:
         """Apply actions (N, 3) in [-1, 1]: returns (obs (N, obs), reward (N,), episode_done).
 
-        Reward: -(|F| - R)/(k*delta), the constraint force beyond the object's own along-axis
-        resistance R (which the simulator knows); with R = 0 the paper's -|F|/(k*delta).
+        Reward: -|F + R u|/(k*delta), the constraint force beyond the object's own along-axis
+        resistance R (which the simulator knows); with R = 0 the paper's -|F|/(k*delta). As a
+        vector, not |F| - R: near alignment |F| - R ~ |N|^2 / (2R) hardly penalizes a small
+        error, while |F + R u| keeps the paper's |N| sqrt(1 + mu^2) while sliding.
         """
         c = self.config
         a = c.action_scale * np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
@@ -208,8 +210,8 @@ class SingleSystemBatch:
         force = self._move()
         self.t += 1
         scale = self.params.stiffness * c.step_length
-        excess = np.maximum(np.linalg.norm(force, axis=1) - self.resistance, 0.0)
-        reward = -excess / scale
+        excess = force + self.resistance[:, None] * self.params.axis
+        reward = -np.linalg.norm(excess, axis=1) / scale
         obs = self._observe(noisy=c.noise_every_step)
         return obs, reward, self.t >= c.episode_length
 

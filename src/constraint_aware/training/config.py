@@ -74,7 +74,7 @@ class EnvConfig:
     damping: tuple[float, float] = (0.0, 0.0)  # c*v_nom [fraction of k*delta]
     inertia: tuple[float, float] = (0.0, 0.0)  # m*a_nom [fraction of k*delta]
     preload: tuple[float, float] = (0.0, 0.0)  # released preload [fraction of k*delta]
-    preload_cone_deg: float = 20.0  # [deg] preload direction: within this cone about u
+    preload_cone_deg: float = 5.0  # [deg] preload direction: within this cone about u
     step_force_unknown_share: float = 0.0  # "magnitude": share of episodes in which the robot
     # reports no stiffness (the ratio input is zero), so the policy has a defined fallback
 
@@ -153,7 +153,7 @@ class EnvConfig:
 #: 0.1 k*delta each (1-3 N), a released preload up to 0.3 k*delta (3-9 N). The sum stays below
 #: the drive of a 45 deg offset (cos 45 - 0.15 sin 45 = 0.6 k*delta) in nearly every episode,
 #: so the body slides: a resistance that holds the body needs a stronger arm, not a new policy.
-RESISTANCE = {
+RESISTANCE: dict[str, Any] = {
     "resistance_free_share": 0.5,
     "dry_friction": (0.0, 0.3),
     "dry_friction_abs": (0.0, 1.0),

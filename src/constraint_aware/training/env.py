@@ -51,8 +51,8 @@ class SingleSystemEnv(gym.Env[np.ndarray, np.ndarray]):
         perturbs the observed F/|F| and d at the first observation (then renormalized).
     Action (3,) in [-1, 1]: a = action_scale * action; d <- (d + a)/|d + a| (kept when
         |d + a| ~ 0).
-    Reward: -(|F| - R) / (k * step_length), the dimensionless constraint force beyond the
-        object's own resistance R after the move (-|F| / (k * step_length) without it).
+    Reward: -|F + R u| / (k * step_length), the dimensionless constraint force beyond the
+        object's own resistance R along u after the move (-|F| / (k * step_length) without it).
     Episode end: terminated after `episode_length` (T = 5) actions. `info["final_angle_deg"]`
         is then the angle between d and u.
     """
