@@ -6,6 +6,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from constraint_aware.bench.analysis import CellSummary, PolicySection
+
 
 def _f(x: float | None, digits: int = 1) -> str:
     if x is None or (isinstance(x, float) and math.isnan(x)):
@@ -100,7 +102,9 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
     for name, s in paper.items():
         if name.startswith(("fig9_", "appendix_")):
             label = dict(s)
-            if name.startswith("appendix_"):
+            if name.startswith("appendix_handle_paper_policy"):
+                label["controller"] = "paper policy without torque policy"
+            elif name.startswith("appendix_"):
                 label["controller"] = "policy without torque policy"
             add(_outcome_row(name, label))
     add("")
@@ -188,9 +192,54 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
                 f"{_f(w['peak_force_N'])} | {cond} |"
             )
         add("")
+    if "policy_section" in results:
+        lines.extend(policy_section_lines(PolicySection.from_dict(results["policy_section"])))
     path = out / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def _cell(c: CellSummary) -> str:
+    return f"{c.successes}/{c.n}, {_f(c.median_peak_force_N)}, {_f(c.mean_force_N)}"
+
+
+def _table(cells: list[CellSummary], first: str, key: Any) -> list[str]:
+    ctrls = list(dict.fromkeys(c.controller for c in cells))
+    rows: dict[Any, dict[str, CellSummary]] = {}
+    for c in cells:
+        rows.setdefault(key(c), {})[c.controller] = c
+    n_keys = first.count("|") + 1
+    out = [f"| {first} | " + " | ".join(ctrls) + " |", "|---" * (len(ctrls) + n_keys) + "|"]
+    for k, row in rows.items():
+        label = " | ".join(str(x) for x in k) if isinstance(k, tuple) else str(k)
+        out.append(
+            f"| {label} | " + " | ".join(_cell(row[c]) if c in row else "" for c in ctrls) + " |"
+        )
+    return out
+
+
+def policy_section_lines(sec: PolicySection) -> list[str]:
+    """The policy section: the paper's policy, the default policy, classical, projection."""
+    lines = ["## Policies: paper vs default vs classical vs projection\n"]
+    lines.append(
+        f"Every controller runs with the dead band derived from the sensor noise "
+        f"({_f(sec.sensor_noise_N, 1)} N per axis: {_f(sec.threshold_N, 1)} N), not a hand-set "
+        "one. Cells: successes / runs, median peak |F| [N], mean |F| [N].\n"
+    )
+    if sec.suite:
+        lines.append("### Randomized suite\n")
+        lines.extend(_table(sec.suite, "task", lambda c: c.task))
+        lines.append("")
+    lines.append("### The paper's offsets\n")
+    lines.extend(_table(sec.paper_offsets, "task", lambda c: c.task))
+    lines.append("\n### Resistance map (paper offsets)\n")
+    lines.extend(
+        _table(
+            sec.resistance, "factor | level | task", lambda c: (c.axis, _fmt_level(c.level), c.task)
+        )
+    )
+    lines.append("")
+    return lines
 
 
 def _fmt_level(v: float) -> str:

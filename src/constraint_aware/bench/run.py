@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench import experiments as ex
+from constraint_aware.bench.analysis import policy_section
 from constraint_aware.bench.figures import draw_all
 from constraint_aware.bench.report import write_report
 from constraint_aware.bench.sweep import SUITE_OFFSET_RANGE
@@ -109,6 +110,7 @@ def run_bench(out: str | Path, quick: bool = False, workers: int | None = None) 
         _first_failures(sens)
         results["sensitivity"] = sens
         all_runs += hm_runs + sens_runs
+    results["policy_section"] = policy_section(quick).to_dict()
     worst = ex.worst_cases(all_runs)
     for w in worst:
         w["sensor_bias_magnitude_N"] = float(np.linalg.norm(w["sensor_bias_N"]))
