@@ -62,6 +62,8 @@ def learning(out: Path) -> dict[str, Any]:
         "final_angle_deg": {k: v["mean_final_angle_deg"] for k, v in metrics.items()},
         "p95_final_angle_deg": {k: v["p95_final_angle_deg"] for k, v in metrics.items()},
         "episodes": metrics.get("policy", {}).get("episodes"),
+        "policy": policy.name,
+        "observation_study": card.get("observation_study"),
     }
 
 

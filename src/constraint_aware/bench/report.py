@@ -67,6 +67,24 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
         "so this is about the best such a policy can do; `oracle` knows the friction.\n"
     )
 
+    study = le.get("observation_study")
+    if study:
+        add("### Why this observation (issue 9's study, recorded in the policy's card)\n")
+        add(
+            "| observation | standard mean [deg] | with resistance mean [deg] | "
+            "probe worst [deg] | closed loop successes | median peak [N] | mean F [N] |\n"
+            + "|---" * 7
+            + "|"
+        )
+        for row in study["rows"]:
+            add(
+                f"| {row['observation']} | {_f(row['standard_mean_deg'], 2)} | "
+                f"{_f(row['resistance_mean_deg'], 2)} | {_f(row['probe_worst_deg'], 1)} | "
+                f"{row['closed_loop_successes']}/{row['closed_loop_runs']} | "
+                f"{_f(row['closed_loop_median_peak_N'])} | {_f(row['closed_loop_mean_force_N'])} |"
+            )
+        add(f"\nChosen: `{study['chosen']}`. {study['reason']}\n")
+
     # 2. fig 6
     paper = results["paper"]
     add(f"## Drawer-opening with direction errors (paper fig. {figs['drawer']})\n")
