@@ -9,12 +9,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from constraint_aware.control.controllers import DirectionController, make_controller
+from constraint_aware.control.controllers import CONTROLLERS, DirectionController, make_controller
 from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.record import RunRecord
+from constraint_aware.errors import (
+    ConfigError,
+    UnknownNameError,
+    check_int,
+    check_number,
+    check_vector,
+)
 from constraint_aware.geometry import FloatArray, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
-from constraint_aware.sim.tasks import TaskConfig, randomized, task_config
+from constraint_aware.sim.tasks import TASKS, TaskConfig, randomized, task_config
 from constraint_aware.sim.world import CONTROL_PERIOD, ManipulationSim
 from constraint_aware.spatial import Wrench
 
@@ -58,6 +65,20 @@ class RunSpec:
     sensor_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N]
     overrides: tuple[tuple[str, object], ...] = ()  # task parameter overrides
     controller_params: tuple[tuple[str, float], ...] = ()  # e.g. classical gains
+
+    def __post_init__(self) -> None:
+        n = "RunSpec."
+        if self.task not in TASKS:
+            raise UnknownNameError("task", str(self.task), list(TASKS))
+        if self.controller not in CONTROLLERS:
+            raise UnknownNameError("controller", str(self.controller), list(CONTROLLERS))
+        check_number(n + "offset_deg", self.offset_deg, low=-180, high=180, unit="deg")
+        check_int(n + "seed", self.seed, low=0)
+        check_number(n + "sensor_noise", self.sensor_noise, low=0, unit="N")
+        check_vector(n + "sensor_bias", self.sensor_bias, unit="N")
+        for pair in (*self.overrides, *self.controller_params):
+            if not (isinstance(pair, tuple) and len(pair) == 2 and isinstance(pair[0], str)):
+                raise ConfigError(n + "overrides", pair, "(name, value) pairs")
 
 
 def executor_config(task: TaskConfig, torque_policy: bool | None = None) -> ExecutorConfig:
