@@ -415,3 +415,37 @@ def test_revolute_normal_is_oriented_from_the_hinge_point() -> None:
     rec = Executor(robot, TurnTen(), cfg).run(U)
     assert any("flipped" in n for n in rec.notes)
     assert robot.commands[HOLD].orientation.as_rotvec()[2] < 0
+
+
+@dataclass
+class Flipped(FakeGuide):
+    """FakeGuide whose driver reports the wrench with the opposite sign."""
+
+    def read_wrench(self) -> Wrench:
+        w = super().read_wrench()
+        return Wrench(-w.force, -w.torque)
+
+
+def test_self_check_names_a_flipped_sign() -> None:
+    rec = Executor(Flipped(), FixedDirection(), ExecutorConfig()).run(d0(30))
+    assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
+    rec = Executor(FakeGuide(), FixedDirection(), ExecutorConfig(max_steps=10)).run(d0(30))
+    assert rec.outcome == "timeout"
+    assert any(n.startswith("self-check passed") for n in rec.notes)
+
+
+def test_wrench_from_sensor_frame_sign_lever_and_weight() -> None:
+    rot = Rotation.from_rotvec([0.0, 0.0, math.pi / 2])  # sensor x = world y
+    w = Wrench.from_sensor(
+        [1.0, 0.0, 0.0], [0.0, 0.0, 0.0], rot, [0.0, 0.0, 0.1], [0.0, 0.0, 0.0], sign=-1.0
+    )
+    np.testing.assert_allclose(w.force, [0.0, -1.0, 0.0], atol=1e-12)
+    # the force acts at the sensor, 10 cm above the tool point: r x F = (0,0,0.1) x (0,-1,0)
+    np.testing.assert_allclose(w.torque, [0.1, 0.0, 0.0], atol=1e-12)
+    # a 1 kg hand hanging at rest reads its weight; compensation removes it
+    w = Wrench.from_sensor(
+        [0.0, 0.0, -9.81], [0.0, 0.0, 0.0], np.eye(3), np.zeros(3), np.zeros(3), hand_mass=1.0
+    )
+    np.testing.assert_allclose(w.force, 0.0, atol=1e-12)
+    with pytest.raises(InvalidInputError, match="sign"):
+        Wrench.from_sensor(np.zeros(3), np.zeros(3), np.eye(3), np.zeros(3), np.zeros(3), sign=2)

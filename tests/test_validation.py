@@ -95,7 +95,6 @@ TASK_BAD: list[tuple[str, dict[str, Any], str]] = [
     ("drawer-opening", {"object__position": (0.0, NAN, 0.8)}, "ObjectConfig.position"),
     ("drawer-opening", {"success_progress": -1.0}, "TaskConfig.success_progress"),
     ("drawer-opening", {"success_progress": NAN}, "TaskConfig.success_progress"),
-    ("drawer-opening", {"success_progress": 2.0}, "TaskConfig.success_progress"),
     ("drawer-opening", {"force_limit": NAN}, "TaskConfig.force_limit"),
     ("drawer-opening", {"max_steps": 0}, "TaskConfig.max_steps"),
     ("drawer-opening", {"slip_limit": 0.0}, "TaskConfig.slip_limit"),

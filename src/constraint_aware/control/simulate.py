@@ -12,6 +12,7 @@ import numpy as np
 from constraint_aware.control.controllers import CONTROLLERS, DirectionController, make_controller
 from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.record import RunRecord
+from constraint_aware.control.robot import Robot
 from constraint_aware.errors import (
     ConfigError,
     UnknownNameError,
@@ -91,6 +92,8 @@ def executor_config(task: TaskConfig, torque_policy: bool | None = None) -> Exec
         max_steps=task.max_steps,
         torque_policy=use_torque and task.constraint_type == "revolute",
         rotation_radius=task.object.radius if task.constraint_type == "revolute" else None,
+        # revolute: the executor orients the workplane normal from the hinge's side
+        hinge_point=task.object.position if task.constraint_type == "revolute" else None,
     )
 
 
@@ -107,11 +110,14 @@ def run(
     on_step: Callable[[ManipulationSim], None] | None = None,
     initial_direction: FloatArray | None = None,
     executor_overrides: dict[str, object] | None = None,
+    wrap: Callable[[ManipulationSim], Robot] | None = None,
 ) -> tuple[RunRecord, ManipulationSim]:
     """Build the task, grasp, and run the controller from d0 = u rotated by `offset_deg`.
 
     initial_direction (3,) replaces that d0 and executor_overrides replace ExecutorConfig
     fields: how a demonstration's estimates (LfO) drive a run instead of the task's truth.
+    wrap: puts a Robot between the executor and the simulator (fault injection); the
+    simulator stays the task monitor. Exceptions carry the record as `exc.run_record`.
     """
     task = build_task(spec)
     sim = NoisySensorSim(
@@ -139,6 +145,8 @@ def run(
     executor = Executor(sim, ctrl, cfg, monitor=sim)
     if on_step is not None:
         executor.robot = _Observed(sim, on_step)  # type: ignore[assignment]
+    if wrap is not None:
+        executor.robot = wrap(executor.robot)  # type: ignore[arg-type]
     label = {
         "task": spec.task,
         "controller": ctrl.name,

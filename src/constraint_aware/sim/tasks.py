@@ -62,12 +62,6 @@ class TaskConfig:
         check_number(n + "press_depth", self.press_depth, low=0, high=0.05, unit="m")
         unit = "rad" if self.object.joint_type == "revolute" else "m"
         check_number(n + "success_progress", self.success_progress, low=0, low_open=True, unit=unit)
-        if self.success_progress >= self.object.joint_range[1]:
-            raise ConfigError(
-                n + "success_progress",
-                self.success_progress,
-                f"below the joint's upper limit ({self.object.joint_range[1]:g} {unit})",
-            )
         check_number(n + "force_limit", self.force_limit, low=0, low_open=True, unit="N")
         check_number(n + "slip_limit", self.slip_limit, low=0, low_open=True, unit="m")
         if self.slip_angle_limit is not None:
