@@ -68,6 +68,15 @@ REANCHOR_LIMIT_STEPS = 2.0
 #: over this many steps, times 1.5) predicts the next step's force.
 FORCE_RATE_WINDOW = 3
 FORCE_RATE_SAFETY = 1.5
+#: The hand lags its moving target: at the end of a period the simulated arm (damping ratio 2)
+#: reads up to ~0.75 step lengths of deflection as force it does not feel (k |deflection| -
+#: |F| is at most 14.9 N for 20 N step forces over the five tasks, and at most 7.3 N above
+#: 30 N). The arm's force estimate subtracts this many step forces.
+ARM_FORCE_LAG_STEPS = 0.75
+#: When the arm's force estimate exceeds the sensor's |F| by more than this many step forces,
+#: the arm and the sensor disagree: stop `not_following` (in normal simulated runs the
+#: estimate never exceeds |F|; a frozen arm reaches this after ~2 ignored commands).
+ARM_FORCE_DISAGREEMENT_STEPS = 0.5
 #: Start-of-run self-check (`Executor._self_check`): only moves with |F| above the dead band and
 #: this [N] count, deflection changes above this [m] count, and a verdict needs this many moves.
 SELF_CHECK_MIN_FORCE = 2.0
@@ -122,7 +131,7 @@ class ExecutorConfig:
     follow_patience: int = 5  # steps held at the lead bound before `not_following`
     stale_steps: int = 3  # identical wrench samples in a row that stop the run (>= 2)
     predictive_force: bool = True  # shorten or refuse a step whose predicted |F| passes the
-    # limit (prediction: the whole move blocked, |F - k l d| with k the robot's stiffness or
+    # limit (prediction: the whole move blocked, |F| + k l with k the robot's stiffness or
     # FORCE_RATE_SAFETY x the largest recent force change per metre)
     min_step_fraction: float = 0.2  # a step the prediction shortens below this fraction of
     # step_length is refused (stop `force_limit`)
@@ -226,6 +235,7 @@ class _Run:
     contact: bool = False
     quiet: int = 0
     last_force: FloatArray | None = None
+    arm_force: float = 0.0  # [N] |F| implied by the arm's deflection (lower bound)
     last_length: float = 0.0  # [m] length of the last move
     force_rates: deque[float] = field(default_factory=lambda: deque(maxlen=FORCE_RATE_WINDOW))
     check_along: list[float] = field(default_factory=list)  # self-check: F.d / |F| per move
@@ -380,6 +390,24 @@ class Executor:
             return self._finish(
                 st, "force_limit", f"|F| = {magnitude:.1f} N > {cfg.force_limit:g} N"
             )
+        st.arm_force = self._arm_force(st, pose) if pose_ok else 0.0
+        if st.stiffness is not None and st.arm_force > magnitude + ARM_FORCE_DISAGREEMENT_STEPS * (
+            st.stiffness * cfg.step_length
+        ):
+            return self._finish(
+                st,
+                "not_following",
+                f"the arm's deflection implies |F| >= {st.arm_force:.1f} N but the sensor reads "
+                f"{magnitude:.1f} N: the arm is not following its target (frozen, e-stopped, "
+                f"clamped, or its pose lags) or the sensor reads low",
+            )
+        if st.arm_force > cfg.force_limit:
+            return self._finish(
+                st,
+                "force_limit",
+                f"the arm's deflection implies |F| >= {st.arm_force:.1f} N > "
+                f"{cfg.force_limit:g} N (the sensor reads {magnitude:.1f} N)",
+            )
         if self.monitor is not None and (reason := self.monitor.grasp_failure()):
             return self._finish(st, "grasp_lost", reason)
         grasp_contact = getattr(self.robot, "grasp_contact", None)
@@ -431,7 +459,7 @@ class Executor:
         if st.moves < cfg.ramp_up_steps:
             length *= (st.moves + 1) / (cfg.ramp_up_steps + 1)
         if cfg.predictive_force and length > 0:
-            allowed, predicted = self._force_bounded_length(st, force, d_next, length)
+            allowed, predicted = self._force_bounded_length(st, force, length)
             if allowed < length:
                 if allowed < cfg.min_step_fraction * cfg.step_length:
                     return self._finish(
@@ -549,25 +577,38 @@ class Executor:
         return True, ""
 
     def _force_bounded_length(
-        self, st: _Run, force: FloatArray, d: FloatArray, length: float
+        self, st: _Run, force: FloatArray, length: float
     ) -> tuple[float, float]:
-        """The longest move along d (<= length) whose predicted force stays at the limit, and
-        the force predicted for the full length. Prediction: the move fully blocked, so the
-        force becomes F - k l d (k: the robot's stiffness, else the recent force rate)."""
-        k = st.stiffness
-        if k is None and st.force_rates:
-            k = FORCE_RATE_SAFETY * max(st.force_rates)
+        """The longest move (<= length) whose predicted force stays at the limit, and the
+        force predicted for the full length.
+
+        Prediction, whatever the direction (a wrong sensor frame must not fool it): the force
+        so far, max(|F|, the arm's deflection estimate), plus k l (the move fully blocked),
+        with k the larger of the robot's stiffness and FORCE_RATE_SAFETY x the largest force
+        change per metre of the last FORCE_RATE_WINDOW moves (the hand's rotation and the
+        dynamics can add force faster than the stiffness alone; without a reported stiffness
+        there is no prediction before the second move)."""
+        rates = [FORCE_RATE_SAFETY * r for r in st.force_rates]
+        k = max([*rates, *([st.stiffness] if st.stiffness is not None else [])], default=None)
         if k is None or k <= 0:
             return length, math.nan
-        predicted = float(np.linalg.norm(force - k * length * d))
+        now = max(float(np.linalg.norm(force)), st.arm_force)
+        predicted = now + k * length
         if predicted <= self.config.force_limit:
             return length, predicted
-        fd = float(force @ d)
-        disc = fd * fd - float(force @ force) + self.config.force_limit**2
-        if disc <= 0:
-            return 0.0, predicted
-        allowed = max(0.0, (fd + math.sqrt(disc)) / k)
-        return min(length, allowed), predicted
+        return max(0.0, (self.config.force_limit - now) / k), predicted
+
+    def _arm_force(self, st: _Run, pose: Pose) -> float:
+        """[N] a lower bound on |F| from the arm alone: on a compliant arm F = k (measured -
+        commanded), less ARM_FORCE_LAG_STEPS step forces for the hand's lag behind a moving
+        target (which reads as deflection); 0 without a reported stiffness. It catches a
+        sensor that reads low (drift, wrong frame)."""
+        if st.stiffness is None or st.deflection0 is None:
+            return 0.0
+        deflection = pose.position - st.target.position - st.deflection0
+        k = st.stiffness
+        lag = ARM_FORCE_LAG_STEPS * k * self.config.step_length
+        return max(0.0, k * float(np.linalg.norm(deflection)) - lag)
 
     def _note_force(self, st: _Run, force: FloatArray, length: float) -> None:
         """Remember the force and the move for the force-rate estimate."""

@@ -13,6 +13,7 @@ from constraint_aware.control.controllers import CONTROLLERS, DirectionControlle
 from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import Robot
+from constraint_aware.control.settings import Settings
 from constraint_aware.errors import (
     ConfigError,
     UnknownNameError,
@@ -66,6 +67,15 @@ class RunSpec:
     sensor_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N]
     overrides: tuple[tuple[str, object], ...] = ()  # task parameter overrides
     controller_params: tuple[tuple[str, float], ...] = ()  # e.g. classical gains
+    executor_overrides: tuple[tuple[str, object], ...] = ()  # ExecutorConfig fields
+
+    def with_settings(self, settings: Settings) -> RunSpec:
+        """This spec with `--set` settings (control.settings.parse_settings) added."""
+        return dataclasses.replace(
+            self,
+            overrides=(*self.overrides, *settings.task_overrides),
+            executor_overrides=(*self.executor_overrides, *settings.executor_overrides),
+        )
 
     def __post_init__(self) -> None:
         n = "RunSpec."
@@ -77,9 +87,13 @@ class RunSpec:
         check_int(n + "seed", self.seed, low=0)
         check_number(n + "sensor_noise", self.sensor_noise, low=0, unit="N")
         check_vector(n + "sensor_bias", self.sensor_bias, unit="N")
-        for pair in (*self.overrides, *self.controller_params):
+        for pair in (*self.overrides, *self.controller_params, *self.executor_overrides):
             if not (isinstance(pair, tuple) and len(pair) == 2 and isinstance(pair[0], str)):
                 raise ConfigError(n + "overrides", pair, "(name, value) pairs")
+        executor_fields = [f.name for f in dataclasses.fields(ExecutorConfig)]
+        for name, _ in self.executor_overrides:
+            if name not in executor_fields:
+                raise UnknownNameError("executor setting", name, executor_fields)
 
 
 def executor_config(task: TaskConfig, torque_policy: bool | None = None) -> ExecutorConfig:
@@ -128,8 +142,9 @@ def run(
     )
     sim.reset()
     cfg = executor_config(task, spec.torque_policy)
-    if executor_overrides:
-        cfg = dataclasses.replace(cfg, **executor_overrides)  # type: ignore[arg-type]
+    changes = {**dict(spec.executor_overrides), **(executor_overrides or {})}
+    if changes:
+        cfg = dataclasses.replace(cfg, **changes)  # type: ignore[arg-type]
     assert cfg.workplane_normal is not None
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     if initial_direction is not None:
