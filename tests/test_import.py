@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -90,3 +91,62 @@ def test_import_does_not_import_heavy_modules() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+# --- packaging ----------------------------------------------------------------------------------
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_version_comes_from_package_metadata() -> None:
+    import tomllib
+    from importlib.metadata import version
+
+    import constraint_aware
+
+    assert constraint_aware.__version__ == version("constraint-aware")
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert constraint_aware.__version__ == pyproject["project"]["version"]
+    assert "__version__ =" not in (ROOT / "pyproject.toml").read_text()
+
+
+def test_package_is_typed_and_ships_the_marker() -> None:
+    import tomllib
+
+    assert (ROOT / "src" / "constraint_aware" / "py.typed").is_file()
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "py.typed" in pyproject["tool"]["setuptools"]["package-data"]["constraint_aware"]
+
+
+def test_torch_bounded_below_in_metadata_and_pinned_in_constraints() -> None:
+    import tomllib
+
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    extras = pyproject["project"]["optional-dependencies"]
+    torch_reqs = [r for r in extras["train"] if r.startswith("torch")]
+    assert torch_reqs and all(">=" in r and "==" not in r for r in torch_reqs)
+    pins = [
+        line.split("#")[0].strip()
+        for line in (ROOT / "constraints.txt").read_text().splitlines()
+        if line.split("#")[0].strip()
+    ]
+    assert "torch==2.13.0" in pins
+
+
+def test_readme_test_command_is_what_ci_runs() -> None:
+    readme = (ROOT / "README.md").read_text()
+    block = readme.split("```bash\n", 1)[1].split("```", 1)[0].splitlines()
+    assert "cap bench" in block[0]
+    readme_test = block[1].split("#")[0].strip()
+    ci = [
+        line.strip()
+        for line in (ROOT / ".ci" / "run").read_text().splitlines()
+        if line.strip() and not line.startswith(("#", "set ", "cd "))
+    ]
+    assert ci == [readme_test]
+    assert "-c constraints.txt" in readme_test and "python -m pytest" in readme_test
+
+
+def test_citation_names_the_paper() -> None:
+    text = (ROOT / "CITATION.cff").read_text()
+    assert "Constraint-aware Policy for Compliant Manipulation" in text
+    assert "Saito" in text and "cff-version" in text
