@@ -16,7 +16,6 @@ bundled ffmpeg (the `video` extra); no system ffmpeg is needed.
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import platform
 from collections.abc import Sequence
@@ -149,12 +148,16 @@ def check_video_path(path: str | Path) -> Path:
             f"video {str(out)!r}: suffix {suffix or '(none)'!r}; valid: {', '.join(VIDEO_SUFFIXES)}"
         )
     if suffix == ".mp4":
-        missing = [m for m in ("imageio", "imageio_ffmpeg") if importlib.util.find_spec(m) is None]
-        if missing:
+        try:
+            import imageio.v2  # noqa: F401
+            import imageio_ffmpeg
+
+            imageio_ffmpeg.get_ffmpeg_exe()  # the wheel's bundled binary
+        except (ImportError, RuntimeError) as exc:
             raise CapError(
-                f"writing .mp4 needs the 'video' extra (missing: {', '.join(missing)}): "
+                f"writing .mp4 needs the 'video' extra ({exc}): "
                 "pip install 'constraint-aware[video]'; or write a .gif"
-            )
+            ) from exc
     return out
 
 
