@@ -7,6 +7,7 @@ backend, no GL choice (see `constraint_aware.sim.render` for when the GL backend
 
 from importlib.metadata import PackageNotFoundError, version
 
+from constraint_aware.envs import register_envs as _register_envs
 from constraint_aware.errors import CapError, InvalidInputError, PolicyFileError, UnknownNameError
 from constraint_aware.policy import ConstraintAwarePolicy
 
@@ -14,6 +15,8 @@ try:  # one version source: the installed distribution's metadata (pyproject.tom
     __version__ = version("constraint-aware")
 except PackageNotFoundError:  # a source tree on sys.path without an installed distribution
     __version__ = "0+unknown"
+
+_register_envs()  # string entry points only: nothing heavy is imported here
 
 __all__ = [
     "CapError",
