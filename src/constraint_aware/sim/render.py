@@ -31,8 +31,14 @@ VIDEO_SUFFIXES: tuple[str, ...] = (".gif", ".mp4")
 IMAGE_SUFFIXES: tuple[str, ...] = (".png",)
 
 
+_chose_egl = False  # set once this module chose EGL (and set MUJOCO_GL) for a headless Linux
+
+
 def headless_egl_needed() -> bool:
-    """True on Linux without a display when the user has not chosen `MUJOCO_GL`."""
+    """True on Linux without a display when the user has not chosen `MUJOCO_GL` (or when
+    this module already chose EGL for them: MuJoCo's import-time choice was made before)."""
+    if _chose_egl:
+        return True
     if "MUJOCO_GL" in os.environ or platform.system() != "Linux":
         return False
     return not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
@@ -99,6 +105,8 @@ class SceneRenderer:
         self.renderer: Any
         try:
             if headless_egl_needed():
+                global _chose_egl
+                _chose_egl = True
                 os.environ["MUJOCO_GL"] = "egl"
                 self.renderer = _EglRenderer(model, height=height, width=width)
             else:
