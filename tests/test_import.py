@@ -150,3 +150,50 @@ def test_citation_names_the_paper() -> None:
     text = (ROOT / "CITATION.cff").read_text()
     assert "Constraint-aware Policy for Compliant Manipulation" in text
     assert "Saito" in text and "cff-version" in text
+
+
+# --- the GL backend: chosen only when rendering, only on headless Linux, only if unset ---------
+RENDER = """
+import os, sys
+import constraint_aware
+from constraint_aware.sim.tasks import task_config
+from constraint_aware.sim.world import ManipulationSim
+assert "MUJOCO_GL" not in os.environ or os.environ["MUJOCO_GL"] == sys.argv[1], "set on import"
+before = os.environ.get("MUJOCO_GL")
+sim = ManipulationSim(task_config("drawer-opening"))
+sim.reset()
+from constraint_aware.sim.render import SceneRenderer
+try:
+    frame = SceneRenderer(sim.model, width=64, height=48).frame(sim.data)
+    print("frame", frame.shape, before, os.environ.get("MUJOCO_GL"))
+except constraint_aware.CapError as exc:
+    print("error", before, os.environ.get("MUJOCO_GL"))
+"""
+
+
+def render_probe(mujoco_gl: str | None) -> list[str]:
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("MUJOCO_GL", "PYOPENGL_PLATFORM", "DISPLAY", "WAYLAND_DISPLAY")
+    }
+    if mujoco_gl is not None:
+        env["MUJOCO_GL"] = mujoco_gl
+    out = subprocess.run(
+        [sys.executable, "-c", RENDER, mujoco_gl or ""],
+        capture_output=True, text=True, env=env, timeout=120,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    return out.stdout.split()
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="the headless EGL choice is Linux-only")
+def test_headless_rendering_chooses_egl_only_when_rendering() -> None:
+    # MuJoCo was imported (by the simulator) before the renderer: the choice still works
+    assert render_probe(None) == ["frame", "(48,", "64,", "3)", "None", "egl"]
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="the headless EGL choice is Linux-only")
+def test_a_users_mujoco_gl_is_left_alone() -> None:
+    words = render_probe("glfw")  # without a display: a clean error, and no second guess
+    assert words == ["error", "glfw", "glfw"]
