@@ -16,6 +16,7 @@ import argparse
 import dataclasses
 import json
 import math
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -427,8 +428,6 @@ def _view_parser(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_view(args: argparse.Namespace) -> int:
-    import os
-
     from constraint_aware.sim.tasks import task_config
     from constraint_aware.sim.world import ManipulationSim
 
@@ -471,7 +470,18 @@ def cmd_lfo(args: argparse.Namespace) -> int:
     if args.execute:
         from constraint_aware.lfo.execute import execute
 
-        record, info = execute(skill, controller=args.controller, seed=args.seed)
+        try:
+            record, info = execute(skill, controller=args.controller, seed=args.seed)
+        except BaseException as exc:  # write the attached record, as cap run does
+            partial = getattr(exc, "run_record", None)
+            if partial is None:
+                raise
+            if args.record:
+                write_json(partial.to_dict(), args.record)
+            if not isinstance(exc, Exception):
+                raise
+            print_error(f"the execution raised {type(exc).__name__}: {exc}")
+            return EXIT_FAILED
         out["execution"] = {**info, **record.summary()}
         _print_outcome(
             out_console,
@@ -625,6 +635,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print_error("interrupted")
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `cap ... --json - | head`: the reader left; no traceback
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_FAILED
 
 
 if __name__ == "__main__":
