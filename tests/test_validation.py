@@ -254,4 +254,4 @@ def test_settings_reach_the_run_and_bad_values_fail_before_moving() -> None:
     with pytest.raises(ConfigError, match=r"ObjectConfig\.mass"):
         run(bad)
     with pytest.raises(UnknownNameError):
-        RunSpec(executor_overrides=(("treshold", 1.0),))
+        RunSpec(overrides=(("executor__treshold", 1.0),))
