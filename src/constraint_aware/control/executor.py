@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.controllers import ControlInput, DirectionController, project_on_plane
@@ -208,6 +209,24 @@ def command_jump_bound(config: ExecutorConfig) -> float:
     """[m] the largest change of the commanded position between two steps: one step length
     plus the largest re-anchoring (REANCHOR_LIMIT_STEPS step lengths). Never exceeded."""
     return config.step_length * (1.0 + REANCHOR_LIMIT_STEPS) * (1 + 1e-9)
+
+
+def orient_normal(
+    normal: ArrayLike, direction: ArrayLike, position: ArrayLike, hinge_point: ArrayLike
+) -> FloatArray:
+    """The workplane normal (3,) oriented so that moving along `direction` (3,) at `position`
+    (3,) [m] turns positively about it around the hinge through `hinge_point` (3,) [m]: the
+    sense paper 3.4.1's rotation and the torque policy assume. Raises InvalidInputError when
+    the direction points along the radius (no sense of rotation)."""
+    n = np.asarray(normal, dtype=float)
+    radial = np.asarray(position, dtype=float) - np.asarray(hinge_point, dtype=float)
+    sense = float(np.cross(radial, np.asarray(direction, dtype=float)) @ n)
+    if abs(sense) < 1e-9:
+        raise InvalidInputError(
+            "initial_direction: parallel to the radius from hinge_point; cannot orient the "
+            "workplane normal"
+        )
+    return n if sense > 0 else -n
 
 
 @dataclass
@@ -729,22 +748,15 @@ class Executor:
     def _oriented_normal(
         self, normal: FloatArray, d: FloatArray, position: FloatArray, record: RunRecord
     ) -> FloatArray:
-        """Revolute + hinge_point: the normal about which d0 turns positively (the motion's
-        sense), flipped with a note when the configured sign is the other one."""
+        """Revolute + hinge_point: the normal about which d0 turns positively, with a note
+        when the configured sign was the other one."""
         cfg = self.config
         if cfg.constraint_type != "revolute" or cfg.hinge_point is None:
             return normal
-        radial = np.asarray(position, dtype=float) - np.asarray(cfg.hinge_point, dtype=float)
-        sense = float(np.cross(radial, d) @ normal)
-        if abs(sense) < 1e-9:
-            raise InvalidInputError(
-                "initial_direction: parallel to the radius from hinge_point; cannot orient "
-                "the workplane normal"
-            )
-        if sense < 0:
+        oriented = orient_normal(normal, d, position, cfg.hinge_point)
+        if float(oriented @ normal) < 0:
             record.notes.append("workplane_normal flipped: d0 turns negatively about it")
-            return -normal
-        return normal
+        return oriented
 
     def _hand_rotation(
         self,

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from constraint_aware.control.controllers import CONTROLLERS, DirectionController, make_controller
-from constraint_aware.control.executor import Executor, ExecutorConfig
+from constraint_aware.control.executor import Executor, ExecutorConfig, orient_normal
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import Robot
 from constraint_aware.control.settings import Settings
@@ -167,6 +167,9 @@ def run(
         d0 = np.asarray(initial_direction, dtype=float)
     else:
         d0 = rotate_about(sim.admissible_direction(), normal, math.radians(spec.offset_deg))
+    if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
+        # the classical controller turns about this axis too: give it the oriented normal
+        normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
     rate = None
     if cfg.constraint_type == "revolute" and cfg.rotation_radius:
         rate = cfg.step_length / CONTROL_PERIOD / cfg.rotation_radius  # w_d = v_d / r
