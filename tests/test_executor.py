@@ -506,3 +506,51 @@ def test_an_outside_robot_reaches_a_goal_without_simulator(offset: float) -> Non
     assert rec.peak_force < 60.0
     final = np.array(rec.steps[-1].direction)
     assert angle_deg(final, U) < 10.0  # the policy found the guide from the forces alone
+
+
+class Broken(FixedDirection):
+    """A controller that fails after two steps: a NaN direction or a 1 m step."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.calls = 0
+
+    def next_direction(self, inp: ControlInput) -> np.ndarray:
+        self.calls += 1
+        if self.kind == "nan" and self.calls > 2:
+            return np.array([np.nan, 0.0, 0.0])
+        return inp.direction
+
+    def step_length(self, nominal: float) -> float:
+        return 1.0 if self.kind == "long" and self.calls > 2 else nominal
+
+
+@pytest.mark.parametrize("kind", ["nan", "long"])
+def test_a_bad_command_is_never_sent(kind: str) -> None:
+    robot = Holding()
+    rec = Executor(robot, Broken(kind), ExecutorConfig()).run(U)
+    assert rec.outcome == "bad_command" and rec.reason
+    assert robot.holds == 1
+    for a, b in zip(robot.commands, robot.commands[1:], strict=False):
+        assert np.all(np.isfinite(b.position))
+        assert np.linalg.norm(b.position - a.position) <= 0.01 + 1e-12
+
+
+def test_a_pose_glitch_is_not_acted_on() -> None:
+    @dataclass
+    class Glitchy(FakeGuide):
+        def read_pose(self) -> Pose:
+            p = super().read_pose()
+            if self.steps == HOLD + 3:  # one reading 50 cm off across the guide
+                return Pose(p.position + np.array([0.0, 0.5, 0.0]), p.orientation)
+            return p
+
+    robot = Glitchy()
+    rec = Executor(robot, ProjectionController(), ExecutorConfig(), monitor=robot).run(d0(20))
+    assert rec.outcome == "success"
+    assert rec.peak_force < 20.0  # the glitch never became a command
+    steps = [
+        np.linalg.norm(b.position - a.position)
+        for a, b in zip(robot.commands, robot.commands[1:], strict=False)
+    ]
+    assert max(steps) <= 0.03

@@ -107,8 +107,9 @@ class ExecutorConfig:
     contact_force: float = 1.0  # [N] without hand contact sensing: |F| above this once means
     lost_contact_force: float = 0.25  # contact was made, and |F| below this means none
     lost_contact_steps: int = 5  # stop after this many steps without contact
-    offset_samples: int = 10  # control periods held before moving, one wrench reading each,
-    # averaged into F_d (>= 2: their spread is the sensor noise). Costs this many periods.
+    offset_samples: int = 10  # wrench readings averaged into F_d, one per control period
+    # while holding before moving (>= 2: their spread is the sensor noise). Cost: the hand
+    # holds offset_samples - 1 extra periods (0.9 s at 10 samples of 100 ms) before moving.
     ramp_up_steps: int = 0  # >0: the first steps move 1/(n+1), 2/(n+1)... of step_length: an
     # acceleration limit that keeps the object's inertial force small (assumption 2)
     torque_policy: bool = False  # fixed-orientation grasp: rotate by the torque policy's w
