@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from pathlib import Path
 from typing import Any
@@ -14,7 +13,12 @@ import numpy as np
 from constraint_aware.bench import experiments as ex
 from constraint_aware.bench.figures import draw_all
 from constraint_aware.bench.report import write_report
-from constraint_aware.bench.sweep import SUITE_OFFSET_RANGE
+from constraint_aware.bench.sweep import (
+    SUITE_OFFSET_RANGE,
+    available_cpus,
+    dask_executor,
+    use_executor,
+)
 from constraint_aware.errors import CapError
 from constraint_aware.sim.tasks import TASKS, task_config
 
@@ -61,8 +65,21 @@ def _first_failures(sens: dict[str, Any]) -> None:
         entry["first_failure_task"] = where
 
 
-def run_bench(out: str | Path, quick: bool = False, workers: int | None = None) -> Path:
-    """Run everything (quick: the paper's experiments with few seeds) into `out`."""
+def run_bench(
+    out: str | Path, quick: bool = False, workers: int | None = None, scheduler: str | None = None
+) -> Path:
+    """Run everything (quick: the paper's experiments with few seeds) into `out`.
+
+    scheduler: a Dask scheduler's address; the sweeps' runs then go to that cluster (through
+    its client's executor) and `workers` is its thread count. The results do not depend on it.
+    """
+    if scheduler is None:
+        return _run_bench(out, quick, workers)
+    with dask_executor(scheduler) as (executor, threads), use_executor(executor):
+        return _run_bench(out, quick, threads)
+
+
+def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
     start = time.perf_counter()
     cfg = ex.BenchConfig.for_mode(quick, workers)
     out_dir = Path(out)
@@ -70,7 +87,7 @@ def run_bench(out: str | Path, quick: bool = False, workers: int | None = None) 
     results: dict[str, Any] = {
         "meta": {
             "quick": quick,
-            "workers": cfg.workers or os.cpu_count() or 1,
+            "workers": cfg.workers or available_cpus(),
             "n_tasks": len(TASKS),
             "n_controllers": len(ex.CONTROLLERS),
             "controllers": list(ex.CONTROLLERS),
