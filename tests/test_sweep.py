@@ -130,3 +130,12 @@ def test_unreachable_scheduler_is_a_clear_error() -> None:
         dask_executor("tcp://127.0.0.1:9", timeout_s=1.0),
     ):
         pass
+
+
+def test_local_scheduler_starts_a_cluster_for_the_sweep(
+    specs: list[sweep.RunSpec], serial: list[dict[str, Any]]
+) -> None:
+    pytest.importorskip("distributed")
+    with dask_executor(sweep.LOCAL_SCHEDULER, local_workers=1) as (executor, threads):
+        assert threads == 1
+        assert run_many(specs[:2], executor=executor, quiet=True) == serial[:2]

@@ -104,13 +104,17 @@ def run_bench(
     """Run everything (quick: the paper's experiments with few seeds) into `out`.
 
     `out` must be new, empty or a previous bench's directory unless `force` (CapError).
-    scheduler: a Dask scheduler's address; the sweeps' runs then go to that cluster (through
-    its client's executor) and `workers` is its thread count. The results do not depend on it.
+    scheduler: a Dask scheduler's address, or "local" for a cluster of `workers` processes on
+    this machine; the sweeps' runs then go to that cluster (through its client's executor) and
+    `workers` is its thread count. The results do not depend on it.
     """
     check_out_dir(Path(out), force)  # before any run or connection
     if scheduler is None:
         return _run_bench(out, quick, workers)
-    with dask_executor(scheduler) as (executor, threads), use_executor(executor):
+    with (
+        dask_executor(scheduler, local_workers=workers) as (executor, threads),
+        use_executor(executor),
+    ):
         return _run_bench(out, quick, threads)
 
 

@@ -98,31 +98,55 @@ def use_executor(executor: Executor | None) -> Iterator[None]:
         _CURRENT_EXECUTOR.reset(token)
 
 
+#: `scheduler` value that starts a Dask cluster on this machine for the sweep.
+LOCAL_SCHEDULER = "local"
+
+
 @contextlib.contextmanager
-def dask_executor(address: str, timeout_s: float = 30.0) -> Iterator[tuple[Executor, int]]:
+def dask_executor(
+    address: str, timeout_s: float = 30.0, local_workers: int | None = None
+) -> Iterator[tuple[Executor, int]]:
     """(executor, total worker threads) of the Dask cluster whose scheduler is at `address`.
 
-    Needs the `cluster` extra (`distributed`). The workers must have this package installed.
+    `address` "local" (LOCAL_SCHEDULER) starts a `distributed.LocalCluster` for the block:
+    `local_workers` single-threaded worker processes (default: the available CPUs). Needs the
+    `cluster` extra (`distributed`); a remote cluster's workers need this package installed.
     """
     try:
-        from distributed import Client
+        from distributed import Client, LocalCluster
     except ImportError as exc:
         raise CapError(
             "scheduler: running on a Dask cluster needs 'distributed': "
             "pip install 'constraint-aware[cluster]'"
         ) from exc
-    try:
-        client = Client(address, timeout=timeout_s, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise CapError(f"scheduler: cannot reach a Dask scheduler at {address!r} ({exc})") from exc
-    try:
+    if local_workers is not None and local_workers < 1:
+        raise CapError(f"workers: a local cluster needs >= 1 worker, got {local_workers}")
+    with contextlib.ExitStack() as stack:
+        if address == LOCAL_SCHEDULER:
+            cluster = LocalCluster(
+                n_workers=local_workers or available_cpus(),
+                threads_per_worker=1,  # one MuJoCo run per process, as in the local pool
+                processes=True,
+                dashboard_address=":0",  # any free port: never collide with a running one
+            )
+            stack.enter_context(cluster)
+            address = cluster.scheduler_address
+        try:
+            client = Client(address, timeout=timeout_s, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise CapError(
+                f"scheduler: cannot reach a Dask scheduler at {address!r} ({exc})"
+            ) from exc
+        stack.callback(client.close)
+        try:
+            client.wait_for_workers(1, timeout=timeout_s)
+        except TimeoutError as exc:
+            raise CapError(
+                f"scheduler: no worker joined the cluster at {address!r} in {timeout_s} s"
+            ) from exc
         threads = sum(client.nthreads().values())
-        if threads < 1:
-            raise CapError(f"scheduler: the cluster at {address!r} has no workers")
         with client.get_executor() as executor:
             yield executor, threads
-    finally:
-        client.close()
 
 
 def gather_in_order(
