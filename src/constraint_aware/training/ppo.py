@@ -75,10 +75,12 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.resume is not None and not Path(self.resume).is_file():
             raise InvalidInputError(
-                f"resume: no SB3 checkpoint at {self.resume!r} (a model.zip that cap train wrote)"
+                f"TrainConfig.resume: no SB3 checkpoint (model.zip of cap train) at {self.resume!r}"
             )
         if self.tensorboard is not None and Path(self.tensorboard).is_file():
-            raise InvalidInputError(f"tensorboard: {self.tensorboard!r} is a file, not a directory")
+            raise InvalidInputError(
+                f"TrainConfig.tensorboard: {self.tensorboard!r} is a file, not a directory"
+            )
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
