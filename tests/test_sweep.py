@@ -6,6 +6,7 @@ import os
 import threading
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -132,10 +133,26 @@ def test_unreachable_scheduler_is_a_clear_error() -> None:
         pass
 
 
-def test_local_scheduler_starts_a_cluster_for_the_sweep(
-    specs: list[sweep.RunSpec], serial: list[dict[str, Any]]
+def test_run_bench_sends_its_sweeps_to_the_scheduler(
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
+    specs: list[sweep.RunSpec],
+    serial: list[dict[str, Any]],
 ) -> None:
+    """run_bench(scheduler="local") starts a LocalCluster and every run_many inside goes there
+    (the whole quick bench twice is too slow for a test: benchmarks/sweep_dask.py does it)."""
     pytest.importorskip("distributed")
-    with dask_executor(sweep.LOCAL_SCHEDULER, local_workers=1) as (executor, threads):
-        assert threads == 1
-        assert run_many(specs[:2], executor=executor, quiet=True) == serial[:2]
+    from constraint_aware.bench import run as bench_run
+
+    seen: dict[str, Any] = {}
+
+    def sweeps_only(out: str | Path, quick: bool, workers: int | None) -> Path:
+        seen["executor"] = type(sweep._CURRENT_EXECUTOR.get()).__name__
+        seen["workers"] = workers
+        seen["runs"] = run_many(specs[:2], quiet=True)
+        return Path(out)
+
+    monkeypatch.setattr(bench_run, "_run_bench", sweeps_only)
+    bench_run.run_bench(tmp_path / "bench", quick=True, workers=1, scheduler=sweep.LOCAL_SCHEDULER)
+    assert seen == {"executor": "ClientExecutor", "workers": 1, "runs": serial[:2]}
+    assert sweep._CURRENT_EXECUTOR.get() is None  # the local pool again after the bench
