@@ -138,10 +138,15 @@ def _add_json(p: argparse.ArgumentParser | argparse._ArgumentGroup, what: str) -
 
 
 def _add_policy(p: argparse.ArgumentParser) -> None:
+    from constraint_aware import policy
+
+    names: tuple[str, ...] = tuple(getattr(policy, "POLICY_NAMES", ()))
     p.add_argument(
         "--policy",
         metavar="NAME|FILE",
-        help="a shipped policy's name or a policy .npz (default: the shipped default policy)",
+        help="a shipped policy's name"
+        + (f" ({', '.join(names)})" if names else "")
+        + " or a policy .npz (default: the shipped default policy)",
     )
 
 
