@@ -105,7 +105,7 @@ def test_replot_of_a_missing_dir_is_a_clear_error(tmp_path: Path) -> None:
         timeout=120,
     )
     assert proc.returncode == 2
-    assert "results.json" in proc.stdout
+    assert "results.json" in proc.stderr
 
 
 def test_policy_section_summaries_do_not_depend_on_run_order() -> None:
