@@ -23,15 +23,13 @@ from constraint_aware.training.study import analytic_study
 
 RUNS = Path("runs/study")
 OUT = Path(__file__).parent / "results" / "observation_study.json"
-#: "magnitude" learns a fallback for robots that report no stiffness in this share of episodes
-UNKNOWN_SHARE = {"magnitude": 0.25}
 
 
 def train_all(observations: list[str], steps: int, seed: int, threads: int, tag: str = "") -> None:
     from constraint_aware.training.ppo import make_config, train
 
     for obs in observations:
-        env = resistance_config(obs, step_force_unknown_share=UNKNOWN_SHARE.get(obs, 0.0))
+        env = resistance_config(obs)  # magnitude: with STEP_FORCE_UNKNOWN_SHARE
         config = make_config(
             "fast", env=env, seed=seed, total_timesteps=steps, torch_threads=threads
         )

@@ -163,6 +163,14 @@ RESISTANCE: dict[str, Any] = {
 }
 
 
+#: "magnitude": the share of episodes in which the robot reports no step force (the input is
+#: zero), so that a robot without `translational_stiffness` gets a trained fallback.
+STEP_FORCE_UNKNOWN_SHARE = 0.25
+
+
 def resistance_config(observation: str = "paper", **overrides: Any) -> EnvConfig:
-    """The paper's environment with the object's own resistance drawn as in `RESISTANCE`."""
-    return dataclasses.replace(EnvConfig(), observation=observation, **{**RESISTANCE, **overrides})
+    """The paper's environment with the object's own resistance drawn as in `RESISTANCE`
+    (and, for "magnitude", `STEP_FORCE_UNKNOWN_SHARE` of the episodes without k*delta)."""
+    unknown = STEP_FORCE_UNKNOWN_SHARE if observation == "magnitude" else 0.0
+    fields = {**RESISTANCE, "step_force_unknown_share": unknown, **overrides}
+    return dataclasses.replace(EnvConfig(), observation=observation, **fields)

@@ -1,7 +1,8 @@
 """Analytic measurements of a policy on the single-system env (numpy only, no training).
 
 - `standard`: the paper's test set (no resistance): mean final angle (bar: <= 2.2 deg);
-- `resistance`: the same with the object's own resistance drawn as in `config.RESISTANCE`;
+- `resistance`: the same with the object's own resistance drawn as in `config.RESISTANCE`
+  (the robot reports its step force in every episode);
 - `pure_resistance_probe`: `update_direction(-m*d, d)` with the defaults on a fresh session,
   the largest turn of d [deg] over magnitudes m and directions d (bar: < 3 deg).
 """
@@ -82,7 +83,7 @@ def analytic_study(
         return policy.act_batch(obs)
 
     standard = dataclasses.replace(EnvConfig(), observation=policy.observation)
-    res = resistance_config(policy.observation)
+    res = resistance_config(policy.observation, step_force_unknown_share=0.0)  # robot knows k
     s = evaluate(ctrl, standard, episodes=episodes)
     r = evaluate(ctrl, res, episodes=episodes)
     return AnalyticStudy(
