@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench import experiments as ex
+from constraint_aware.bench import placement
 from constraint_aware.bench.figures import draw_all
 from constraint_aware.bench.report import write_report
 from constraint_aware.bench.sweep import SUITE_OFFSET_RANGE
@@ -101,6 +102,7 @@ def run_bench(out: str | Path, quick: bool = False, workers: int | None = None) 
         "peak_force_samples": ex.peak_force_samples(suite_runs),
     }
     all_runs = list(suite_runs)
+    results["placement"] = placement.bench_section(quick)
     if not quick:
         heatmap, hm_runs = ex.offset_heatmap(cfg)
         heatmap["full_success_halfwidth_deg"] = _full_success_halfwidth(heatmap)

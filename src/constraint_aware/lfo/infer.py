@@ -155,7 +155,8 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
     if grasp_override:
         grasp, source = grasp_override, "user override"
     if constraint != "revolute":
-        normal, plane_note = _prismatic_workplane(pos, grasp)
+        quats = None if demo.orientation is None else demo.orientation[~glitches]
+        normal, plane_note = _prismatic_workplane(pos, grasp, quats)
         if plane_note:
             warnings.append(plane_note)
         uncertainty["line_rms_m"] = geometry["line_rms_m"]
@@ -175,7 +176,9 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
     direction = unit(direction - float(direction @ normal) * normal)
     if constraint == "revolute":
         assert centre is not None
-        goal: float | None = _swept_angle(pos[start:stop], np.asarray(centre), normal)
+        goal: float | None = _swept_angle(
+            pos, np.asarray(centre), normal, max(start, 3), min(stop, len(pos) - 3)
+        )
     elif constraint == "prismatic":
         goal = float((rest_end - rest_start) @ direction)
     else:
@@ -188,7 +191,7 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
     geometry["start_segment_direction"] = start_dir.tolist()
     geometry["glitches_removed"] = int(glitches.sum())
 
-    sense = motion_sense_warning(demo, words.verb, direction, constraint)
+    sense = motion_sense_warning(demo, direction, rest_end - rest_start, constraint)
     if sense:
         warnings.append(sense)
     return SkillParameters(
@@ -215,12 +218,16 @@ def _motion_start(pos: FloatArray, moved: float = 0.01) -> int:
     return int(max(away[0] - 1, 0)) if away.size else 0
 
 
-def _prismatic_workplane(pos: FloatArray, grasp: str) -> tuple[FloatArray, str]:
+def _prismatic_workplane(
+    pos: FloatArray, grasp: str, orientation: FloatArray | None = None
+) -> tuple[FloatArray, str]:
     """A line does not fix a plane: fit one if the path spans it, else take the plane the grasp
-    implies (README: LfO): a hook (lazy closure) on a bar carries force only across the bar, so
-    the vertical plane through the line; a squeezed pole or a pressed plate moves in the
-    horizontal plane through it. For a vertical line (a sash window) any vertical plane holds
-    the line: the one across world y."""
+    implies (README: LfO): a hook (lazy closure) on a bar carries force only across the bar:
+    with the hand's orientations, the plane across the hand's x axis (the fingers curl in the
+    hand's y-z plane, sim/hand.py, so a hooked bar runs along x); without them, the vertical
+    plane through the line. A squeezed pole or a pressed plate moves in the horizontal plane
+    through it. For a vertical line (a sash window) without orientations, no plane is preferred:
+    the one across world y is taken, with a warning."""
     try:
         plane = fit_plane(pos)
         if plane.extent[1] > 0.2 * plane.extent[0]:
@@ -229,6 +236,14 @@ def _prismatic_workplane(pos: FloatArray, grasp: str) -> tuple[FloatArray, str]:
         pass
     line = fit_line(pos).direction
     up = np.array([0.0, 0.0, 1.0])
+    bar = _hand_x(orientation) if orientation is not None else None
+    if grasp == "lazy_closure" and bar is not None:
+        across = bar - float(bar @ line) * line
+        if np.linalg.norm(across) > 0.5:
+            return unit(across), (
+                "the path is a line, which fixes no plane: workplane = the plane across the "
+                "hooked bar (the hand's x axis)"
+            )
     if abs(float(line @ up)) > 0.9:
         normal = np.cross(line, [1.0, 0.0, 0.0])
         note = "vertical plane through it"
@@ -240,6 +255,17 @@ def _prismatic_workplane(pos: FloatArray, grasp: str) -> tuple[FloatArray, str]:
         normal = normal if float(normal @ up) > 0 else -normal
         note = "the horizontal plane through it (a pressed plate or a squeezed pole)"
     return unit(normal), f"the path is a line, which fixes no plane: workplane = {note}"
+
+
+def _hand_x(orientation: FloatArray) -> FloatArray | None:
+    """(3,) the hand's mean x axis over the demonstration (quaternions (w, x, y, z))."""
+    from scipy.spatial.transform import Rotation
+
+    w, x, y, z = np.asarray(orientation, dtype=float).T
+    axes = Rotation.from_quat(np.stack([x, y, z, w], axis=1)).apply([1.0, 0.0, 0.0])
+    axes = axes * np.sign(axes @ axes[0])[:, None]  # an axis: one sign
+    mean = axes.mean(axis=0)
+    return unit(mean) if np.linalg.norm(mean) > 0.5 else None
 
 
 def _line_direction_std_deg(pos: FloatArray) -> float:
@@ -254,17 +280,19 @@ def _line_direction_std_deg(pos: FloatArray) -> float:
     return math.degrees(math.atan2(sigma, math.sqrt(len(pos)) * max(spread, 1e-9)))
 
 
-def _swept_angle(path: FloatArray, centre: FloatArray, normal: FloatArray) -> float:
-    """[rad] rotation about `normal` through `centre` from the path's start to its end (ends
-    averaged over a few samples against the noise), unwrapped along the path."""
+def _swept_angle(
+    path: FloatArray, centre: FloatArray, normal: FloatArray, start: int, stop: int
+) -> float:
+    """[rad] rotation about `normal` through `centre` from the rest before the motion
+    (path[:start]) to the rest after it (path[stop:]), medians against the noise, the angle
+    unwrapped along the path."""
     e1 = unit(np.cross(normal, [1.0, 0.0, 0.0]))
     if np.linalg.norm(np.cross(normal, [1.0, 0.0, 0.0])) < 0.5:
         e1 = unit(np.cross(normal, [0.0, 1.0, 0.0]))
     e2 = np.cross(normal, e1)
     rel = path - centre
     ang = np.unwrap(np.arctan2(rel @ e2, rel @ e1))
-    k = max(1, min(5, len(ang) // 10))
-    return float(np.median(ang[-k:]) - np.median(ang[:k]))
+    return float(np.median(ang[stop:]) - np.median(ang[:start]))
 
 
 def radius_error_pct(estimate: float, truth: float) -> float:

@@ -28,6 +28,7 @@ MAX_HAND_SPEED = 2.0  # [m/s] median hand speed while moving: opening drawers an
 # 0.1-0.5 m/s; even fast reaches peak near 2 m/s
 TYPICAL_HAND_SPEED = 0.2  # [m/s] the speed a plausible unit should bring the motion closest to
 MOVING_SPEED = 0.01  # [m/s] (in the file's units) samples slower than this are at rest
+SPEED_WINDOW = 0.5  # [s] the hand's speed is its displacement over this long
 UNITS = {"centimetres": 100.0, "millimetres": 1000.0}
 CONFIDENCE_SIGMAS = 2.0  # the certainty bound's confidence (2 sigma ~ 95 %)
 SENSE_COSINE = 0.5  # |cos| between motion and palm normal (or vertical) that decides a sense
@@ -46,8 +47,13 @@ class UncertainEstimateError(CapError, ValueError):
 
 
 def _extent_and_speed(t: FloatArray, pos: FloatArray) -> tuple[float, float]:
+    """(extent [file units], median speed while moving [units/s]); the speed is taken over
+    SPEED_WINDOW so that tracking noise, differentiated sample by sample, does not pass for
+    motion (3 cm of noise at 30 Hz would read as 2 m/s)."""
     extent = float(np.linalg.norm(pos.max(axis=0) - pos.min(axis=0)))
-    speed = np.linalg.norm(np.diff(pos, axis=0), axis=1) / np.diff(t)
+    span = float(t[-1] - t[0])
+    lag = max(1, round(len(t) * min(SPEED_WINDOW, span / 2) / max(span, 1e-12)))
+    speed = np.linalg.norm(pos[lag:] - pos[:-lag], axis=1) / (t[lag:] - t[:-lag])
     moving = speed[speed > MOVING_SPEED]
     return extent, float(np.median(moving)) if moving.size else 0.0
 
@@ -79,14 +85,16 @@ def check_units(demo: Demonstration) -> None:
 
 
 def motion_sense_warning(
-    demo: Demonstration, verb: str | None, direction: FloatArray, constraint: str
+    demo: Demonstration, direction: FloatArray, chord: FloatArray, constraint: str
 ) -> str | None:
     """A warning when the motion's sense contradicts the verb (open vs close), else None.
 
-    The motion's sense: with hand orientations, pulling against the palm normal (hand z, which
-    points at the object) opens and pushing along it closes; without them, or when the palm
-    is across the motion (a pressed plate, a crank), a mostly vertical motion (lids, windows)
-    opens upward and closes downward; otherwise the sense is not known and nothing is said.
+    direction (3,): the initial direction of motion; chord (3,) [m]: from the resting start to
+    the resting end. The motion's sense: with hand orientations, pulling against the palm
+    normal (hand z, which points at the object) opens and pushing along it closes; without
+    them, or when the palm is across the motion (a pressed plate, a crank), a mostly vertical
+    chord (lids, windows) opens upward and closes downward; otherwise the sense is not known
+    and nothing is said.
     """
     wanted = verb_sense(demo.instruction)
     if wanted is None or constraint not in ("prismatic", "revolute"):
@@ -104,7 +112,8 @@ def motion_sense_warning(
             moved = "close" if c > 0 else "open"
             why = "pushes along the palm normal" if c > 0 else "pulls against the palm normal"
     if moved is None:
-        c = float(d[2])
+        norm = float(np.linalg.norm(chord))
+        c = float(chord[2]) / norm if norm > 0 else 0.0
         if abs(c) > SENSE_COSINE:
             moved = "open" if c > 0 else "close"
             why = "moves upward" if c > 0 else "moves downward"
