@@ -16,7 +16,7 @@ import json
 import time
 from pathlib import Path
 
-from constraint_aware.bench.placement import run_placement
+from constraint_aware.bench.placement import FULL_PER_KIND, run_placement
 
 HERE = Path(__file__).parent
 
@@ -27,7 +27,7 @@ def _f(x: float | None, digits: int = 1) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--per-kind", type=int, default=15)
+    parser.add_argument("--per-kind", type=int, default=FULL_PER_KIND)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default=str(HERE / "results" / "placement.json"))
     args = parser.parse_args()

@@ -25,7 +25,6 @@ from constraint_aware.lfo.plausibility import check_certainty
 from constraint_aware.lfo.scene import scene_from_skill, with_goal
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.tasks import TaskConfig
-from constraint_aware.sim.world import CONTROL_PERIOD
 
 SENSOR_NOISE = 0.1  # [N] std of the simulated force reading per axis (as `cap run`)
 
@@ -90,7 +89,7 @@ def execute(
     )
     rate = None
     if cfg.constraint_type == "revolute" and radius:
-        rate = cfg.step_length / CONTROL_PERIOD / radius  # w_d = v_d / r
+        rate = cfg.step_length / sim.control_period / radius  # w_d = v_d / r
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     ctrl = make_controller(controller, policy, rate, normal)
     d0 = np.asarray(skill.initial_direction, dtype=float)
