@@ -190,3 +190,23 @@ def test_transform_rejects_a_bad_matrix() -> None:
 
     with pytest.raises(DemoError, match="3, 3"):
         transformed(demo, np.eye(2))
+
+
+@pytest.mark.parametrize("kind", ["plate", "pole", "window", "lid", "crank"])
+def test_every_kind_runs_on_the_object_built_from_its_demo(kind: str) -> None:
+    place = random_placement(kind, np.random.default_rng(21))
+    demo = demo_of_object(place.task, place.goal, np.random.default_rng(22),
+                          TrackingNoise(noise=0.005))  # fmt: skip
+    record, info = execute(infer_skill(demo))
+    assert info["kind"] == kind
+    assert record.success, record.reason
+    assert path_deviation(record, demo.position) < 0.03
+
+
+def test_an_arc_with_drawer_words_is_built_as_a_hinged_object() -> None:
+    demo = load(ROOT / "examples" / "door_demo.json")
+    skill = infer_skill(transformed(demo, np.eye(3), instruction="open the drawer",
+                                    object_name="drawer"))  # fmt: skip
+    scene = scene_from_skill(skill)
+    assert scene.kind == "door" and scene.task.constraint_type == "revolute"
+    assert any("geometry decides" in n for n in scene.notes)
