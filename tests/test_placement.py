@@ -55,7 +55,7 @@ def test_frames_are_right_handed_and_follow_the_object(
     kind: str, geometry: dict[str, tuple[float, float, float]]
 ) -> None:
     obj = object_for(kind, position=(0.5, 0.1, 0.9), **geometry)
-    task = task_from_object(kind, obj)
+    task = task_from_object(kind, obj, max_steps=60)
     frame = object_frame(obj)
     assert _proper(frame) and _proper(task.hand_mount())
     np.testing.assert_allclose(frame[:, 0], obj.opening_direction, atol=1e-12)

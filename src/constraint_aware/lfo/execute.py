@@ -17,7 +17,7 @@ import numpy as np
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord
-from constraint_aware.control.simulate import NoisySensorSim, executor_config
+from constraint_aware.control.simulate import NoisySensorSim, RunSpec, executor_config
 from constraint_aware.errors import CapError
 from constraint_aware.geometry import FloatArray, angle_deg
 from constraint_aware.lfo.infer import SkillParameters
@@ -26,7 +26,7 @@ from constraint_aware.lfo.scene import scene_from_skill, with_goal
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.tasks import TaskConfig
 
-SENSOR_NOISE = 0.1  # [N] std of the simulated force reading per axis (as `cap run`)
+SENSOR_NOISE = RunSpec.sensor_noise  # [N] std of the simulated force reading, as `cap run`
 
 
 def goal_label(constraint: str, goal: float) -> dict[str, Any]:

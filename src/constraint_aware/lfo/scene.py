@@ -14,16 +14,25 @@ them), pose from the fits, grasp from the table, goal from the demonstrated trav
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from constraint_aware.control.executor import ExecutorConfig
 from constraint_aware.geometry import unit
 from constraint_aware.lfo.infer import SkillParameters
 from constraint_aware.lfo.lexicon import NOUN_KINDS
-from constraint_aware.sim.objects import HandleShape, ObjectConfig
-from constraint_aware.sim.tasks import KIND_OBJECTS, TaskConfig, object_for, task_from_object
+from constraint_aware.sim.objects import HandleShape
+from constraint_aware.sim.tasks import (
+    KIND_OBJECTS,
+    TaskConfig,
+    default_max_steps,
+    object_for,
+    task_from_object,
+)
 
+STEP_LENGTH = ExecutorConfig().step_length  # [m] the executor's step (sizes the timeouts)
 #: |axis . z| above this is a vertical slide (window) or a vertical hinge (door, crank)
 VERTICAL_COSINE = 0.7
 #: margins beyond the demonstrated goal before the joint's end stop [m] / [rad]
@@ -113,8 +122,9 @@ def scene_from_skill(skill: SkillParameters) -> DemonstratedScene:
             joint_range=(lo, max(hi, goal + ROTATION_MARGIN)),
         )
     task = task_from_object(
-        kind, obj, name=f"{kind} (from the demonstration)", success_progress=goal
-    )
+        kind, obj, name=f"{kind} (from the demonstration)", success_progress=goal,
+        step_length=STEP_LENGTH,
+    )  # fmt: skip
     return DemonstratedScene(kind, task, notes)
 
 
@@ -124,15 +134,8 @@ def _t(v: np.ndarray) -> tuple[float, float, float]:
 
 def with_goal(task: TaskConfig, goal: float) -> TaskConfig:
     """`task` with the demonstrated goal as its success criterion (and a timeout sized to it)."""
-    import dataclasses
-
-    from constraint_aware.sim.tasks import default_max_steps
-
     return dataclasses.replace(
         task,
         success_progress=goal,
-        max_steps=max(task.max_steps, default_max_steps(task.object, goal)),
+        max_steps=max(task.max_steps, default_max_steps(task.object, goal, STEP_LENGTH)),
     )
-
-
-__all__ = ["DemonstratedScene", "ObjectConfig", "kind_for", "scene_from_skill", "with_goal"]

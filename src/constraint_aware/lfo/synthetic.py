@@ -11,6 +11,7 @@ import numpy as np
 
 from constraint_aware.geometry import FloatArray, random_perpendicular, random_unit, unit
 from constraint_aware.lfo.demo import Demonstration
+from constraint_aware.lfo.scene import STEP_LENGTH
 from constraint_aware.sim.tasks import TaskConfig
 
 Kind = Literal["drawer", "door", "handle"]
@@ -196,7 +197,8 @@ def random_placement(kind: str, rng: np.random.Generator) -> Placement:
         from constraint_aware.sim.tasks import KINDS
 
         raise UnknownNameError("object kind", kind, list(KINDS))
-    return Placement(kind, task_from_object(kind, obj, success_progress=goal), goal)
+    task = task_from_object(kind, obj, success_progress=goal, step_length=STEP_LENGTH)
+    return Placement(kind, task, goal)
 
 
 def demo_of_object(

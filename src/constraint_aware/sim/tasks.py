@@ -16,7 +16,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from constraint_aware.errors import UnknownNameError
+from constraint_aware.errors import InvalidInputError, UnknownNameError
 from constraint_aware.sim.hand import HandConfig
 from constraint_aware.sim.objects import ObjectConfig, object_frame
 
@@ -166,7 +166,6 @@ KIND_SUCCESS: dict[str, float] = {
     "door": float(np.radians(60.0)), "lid": float(np.radians(60.0)),
     "crank": float(np.radians(90.0)),
 }  # fmt: skip
-STEP_LENGTH = 0.01  # [m] the executor's step, used only to size the timeout of a built task
 
 
 def object_for(kind: str, **fields: Any) -> ObjectConfig:
@@ -176,11 +175,12 @@ def object_for(kind: str, **fields: Any) -> ObjectConfig:
     return ObjectConfig(**{**KIND_OBJECTS[kind], **fields})
 
 
-def default_max_steps(obj: ObjectConfig, success_progress: float) -> int:
-    """Steps to cover the goal's path at 1 cm per step, plus half again for steps spent
-    correcting the direction and 20 for the start (the presets' own numbers are kept)."""
+def default_max_steps(obj: ObjectConfig, success_progress: float, step_length: float) -> int:
+    """Steps to cover the goal's path at `step_length` [m] per step (the executor's), plus half
+    again for steps spent correcting the direction and 20 for the start (the presets keep
+    their own numbers)."""
     path = success_progress * (obj.radius if obj.joint_type == "revolute" else 1.0)
-    return math.ceil(1.5 * path / STEP_LENGTH) + 20
+    return math.ceil(1.5 * path / step_length) + 20
 
 
 def task_from_object(
@@ -190,15 +190,21 @@ def task_from_object(
     name: str | None = None,
     success_progress: float | None = None,
     max_steps: int | None = None,
+    step_length: float | None = None,
     **fields: Any,
 ) -> TaskConfig:
     """A task for any placement of an object of `kind`: the grasp from its handle shape, the
     geometry (hand mount, workplane) from the object, the goal from `success_progress` (default:
-    the kind's) and a timeout sized to that goal unless given."""
+    the kind's) and `max_steps`, or a timeout sized to the goal at `step_length` [m] per step
+    (the executor's step: the caller knows it, the simulator does not)."""
     if kind not in KIND_OBJECTS:
         raise UnknownNameError("object kind", kind, list(KINDS))
     goal = KIND_SUCCESS[kind] if success_progress is None else float(success_progress)
-    steps = default_max_steps(obj, goal) if max_steps is None else max_steps
+    if max_steps is None:
+        if step_length is None or step_length <= 0:
+            raise InvalidInputError("task_from_object needs max_steps or a positive step_length")
+        max_steps = default_max_steps(obj, goal, step_length)
+    steps = max_steps
     grasp = {**HANDLE_GRASPS[obj.handle], **fields}
     return TaskConfig(
         name=name or kind,
