@@ -57,6 +57,8 @@ class PlacementRun:
     goal_error: float | None  # [cm] travel or [deg] angle, estimate - truth
     start_error_m: float | None  # the handle's start position
     hinge_error_m: float | None  # revolute: distance of the fitted centre from the hinge line
+    true_goal: float = math.nan  # [m] or [rad] the demonstrated travel or angle (truth)
+    progress: float = math.nan  # [m] or [rad] where the object ended (truth)
 
 
 @dataclass(frozen=True)
@@ -159,7 +161,8 @@ def one_run(
         )  # fmt: skip
     return PlacementRun(
         kind, controller, index, record.outcome, record.success, record.peak_force,
-        record.n_steps, record.reason, kind_correct=kind_ok, **errors,
+        record.n_steps, record.reason, kind_correct=kind_ok, true_goal=place.goal,
+        progress=record.progress, **errors,
     )  # fmt: skip
 
 
