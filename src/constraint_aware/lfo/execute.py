@@ -29,6 +29,25 @@ from constraint_aware.sim.tasks import TaskConfig
 SENSOR_NOISE = RunSpec.sensor_noise  # [N] std of the simulated force reading, as `cap run`
 
 
+def robot_goal(skill: SkillParameters) -> tuple[float | None, float | None]:
+    """The executor's stop from the demonstration, measured by the robot on its own poses:
+    prismatic: the demonstrated travel (goal_travel); revolute with a fixed-orientation grasp:
+    the demonstrated angle (goal_rotation: the hand turns with the object); other revolute
+    grasps let the hand turn about the handle (a hooked bar), so the hand's orientation does not
+    measure the hinge's angle, but its distance from the start does: the chord
+    2 r sin(angle / 2) of the fitted radius (monotonic up to 180 deg; beyond, no robot-side
+    goal and the simulated object's progress decides). The simulated task's success criterion
+    is the same goal, measured on the object. Returns (goal_travel [m], goal_rotation [rad])."""
+    goal = float(skill.goal or 0.0)
+    if skill.constraint_type == "prismatic":
+        return goal, None
+    if skill.fixed_orientation:
+        return None, goal
+    if skill.radius is not None and goal < math.pi:
+        return 2.0 * skill.radius * math.sin(goal / 2.0), None
+    return None, None
+
+
 def goal_label(constraint: str, goal: float) -> dict[str, Any]:
     if constraint == "revolute":
         return {"goal_rotation_deg": math.degrees(goal), "goal_source": "demonstration"}
@@ -75,6 +94,7 @@ def execute(
     sim = NoisySensorSim(task, np.random.default_rng(seed + 7919), sensor_noise)
     sim.reset()
     base = executor_config(task, skill.fixed_orientation)
+    goal_travel, goal_rotation = robot_goal(skill)
     radius = skill.radius if skill.constraint_type == "revolute" else None
     cfg = dataclasses.replace(
         base,
@@ -86,6 +106,8 @@ def execute(
         ),
         torque_policy=bool(skill.fixed_orientation) and skill.constraint_type == "revolute",
         rotation_radius=radius,
+        goal_travel=goal_travel,
+        goal_rotation=goal_rotation,
     )
     rate = None
     if cfg.constraint_type == "revolute" and radius:
