@@ -45,6 +45,7 @@ def main() -> None:
     print("|---" * 9 + "|")
     for s in result.summary:
         pf = s.peak_force_N or {}
+        short = s.errors.get("shortfall") or {}
 
         def p95(name: str, e: dict[str, dict[str, float] | None] = s.errors) -> str:
             stats = e.get(name)
@@ -53,7 +54,8 @@ def main() -> None:
         print(
             f"| {s.kind} | {s.controller} | {s.successes}/{s.n} | {s.refused} | "
             f"{_f(pf.get('median'))} / {_f(pf.get('max'))} | {p95('normal_error_deg')} | "
-            f"{p95('direction_error_deg')} | {p95('radius_error_pct')} | {p95('goal_error')} |"
+            f"{p95('direction_error_deg')} | {p95('radius_error_pct')} | {p95('goal_error')} | "
+            f"{_f(short.get('median'))} / {_f(short.get('max'))} |"
         )
     print(json.dumps(result.overall, indent=1))
     print(f"wrote {out} in {data['wall_time_s']:.0f} s")

@@ -104,6 +104,9 @@ def test_the_object_built_from_a_demo_is_placed_where_the_demo_says(kind: str) -
     scene = scene_from_skill(skill)
     truth, built = place.task.object, scene.task.object
     assert scene.kind == kind
+    assert built.handle == truth.handle  # the grasp table agrees with the kind's handle
+    assert scene.task.force_exertion_type == place.task.force_exertion_type
+    assert skill.fixed_orientation == place.task.fixed_orientation
     np.testing.assert_allclose(built.handle_position, truth.handle_position, atol=0.01)
     assert float(np.dot(built.opening_direction, truth.opening_direction)) > math.cos(0.05)
     if truth.joint_type == "revolute":

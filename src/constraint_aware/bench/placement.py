@@ -59,6 +59,7 @@ class PlacementRun:
     hinge_error_m: float | None  # revolute: distance of the fitted centre from the hinge line
     true_goal: float = math.nan  # [m] or [rad] the demonstrated travel or angle (truth)
     progress: float = math.nan  # [m] or [rad] where the object ended (truth)
+    shortfall: float | None = None  # [cm] or [deg] true goal - final progress (> 0: short)
 
 
 @dataclass(frozen=True)
@@ -159,10 +160,11 @@ def one_run(
             errors.get("radius_error_pct"), errors.get("goal_error"),
             errors.get("start_error_m"), errors.get("hinge_error_m"),
         )  # fmt: skip
+    scale = math.degrees(1.0) if place.task.constraint_type == "revolute" else 100.0
     return PlacementRun(
         kind, controller, index, record.outcome, record.success, record.peak_force,
         record.n_steps, record.reason, kind_correct=kind_ok, true_goal=place.goal,
-        progress=record.progress, **errors,
+        progress=record.progress, shortfall=(place.goal - record.progress) * scale, **errors,
     )  # fmt: skip
 
 
@@ -175,6 +177,11 @@ def summarize(runs: list[PlacementRun], kind: str, controller: str) -> Placement
     names = ("normal_error_deg", "direction_error_deg", "radius_error_pct", "goal_error",
              "start_error_m", "hinge_error_m")  # fmt: skip
     errors = {n: _stats([getattr(r, n) for r in mine if getattr(r, n) is not None]) for n in names}
+    # signed: how far short of the true goal the object stopped (negative: beyond it)
+    short = [r.shortfall for r in mine if r.shortfall is not None]
+    errors["shortfall"] = (
+        {"median": float(np.median(short)), "max": float(np.max(short))} if short else None
+    )
     successes = sum(r.success for r in mine)
     return PlacementSummary(
         kind, controller, len(mine), successes, successes / max(len(mine), 1),
@@ -258,21 +265,24 @@ def report_lines(section: dict[str, Any]) -> list[str]:
         f"{section['per_kind']} random placements per kind (any yaw, either hinge side, radii "
         f"{lo:g} to {hi:g} m), each demonstrated once with {section['noise_mm']:g} mm tracking "
         "noise and executed on the true object with the demonstration's estimates in charge "
-        "(workplane, initial direction, radius, grasp, goal). Errors are the "
+        "(workplane, initial direction, radius, grasp, goal); the robot stops at the "
+        "demonstrated goal measured on its own poses. Errors are the "
         f"{section['error_percentile']}th percentiles of |estimate - truth| "
         f"(`python benchmarks/placement.py` runs {section['full_benchmark_per_kind']} per "
         "kind).\n",
         "| kind | controller | success | peak F median / max [N] | normal [deg] | "
-        "direction [deg] | radius [%] | goal [cm or deg] |",
-        "|---" * 8 + "|",
+        "direction [deg] | radius [%] | goal [cm or deg] | short of the goal, median / max "
+        "[cm or deg] |",
+        "|---" * 9 + "|",
     ]
     for s in section["summary"]:
         pf = s["peak_force_N"] or {}
+        short = s["errors"].get("shortfall") or {}
         lines.append(
             f"| {s['kind']} | {s['controller']} | {s['successes']}/{s['n']} | "
             f"{f(pf.get('median'))} / {f(pf.get('max'))} | {p95(s, 'normal_error_deg')} | "
             f"{p95(s, 'direction_error_deg')} | {p95(s, 'radius_error_pct')} | "
-            f"{p95(s, 'goal_error')} |"
+            f"{p95(s, 'goal_error')} | {f(short.get('median'))} / {f(short.get('max'))} |"
         )
     lines.append("")
     for controller, o in section["overall"].items():

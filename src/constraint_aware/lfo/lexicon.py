@@ -18,10 +18,11 @@ Grasp (force-exertion type, Saito et al. 2022) from the object, else from the co
 
 | object                                  | force-exertion type     | fixed orientation |
 |-----------------------------------------|-------------------------|-------------------|
-| drawer, door, gate, sliding door, flap  | lazy closure            | no                |
+| drawer, door, gate, sliding door, flap, | lazy closure            | no                |
+| lid, window (a hooked bar or lip)       |                         |                   |
 | pole, rod, lever                        | active-force closure    | no                |
 | plate, tray                             | passive-force closure   | no                |
-| handle, crank, knob, valve, wheel, lid  | passive-force closure   | yes               |
+| handle, crank, knob, valve, wheel       | passive-force closure   | yes               |
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ GRASP_TABLE: dict[str, tuple[str, bool]] = {
     "knob": ("passive_force_closure", True),
     "valve": ("passive_force_closure", True),
     "wheel": ("passive_force_closure", True),
-    "lid": ("passive_force_closure", True),
+    "lid": ("lazy_closure", False),
 }
 DEFAULT_GRASP = {"prismatic": ("lazy_closure", False), "revolute": ("lazy_closure", False)}
 
