@@ -40,9 +40,10 @@ def main() -> None:
     out.write_text(json.dumps(data, indent=1) + "\n")
     print(
         "| kind | controller | success | refused | peak F median / max [N] | normal err p95 "
-        "[deg] | direction err p95 [deg] | radius err p95 [%] | goal err p95 [cm or deg] |"
+        "[deg] | direction err p95 [deg] | radius err p95 [%] | goal err p95 [cm or deg] | "
+        "short of the true goal median / max [cm or deg] |"
     )
-    print("|---" * 9 + "|")
+    print("|---" * 10 + "|")
     for s in result.summary:
         pf = s.peak_force_N or {}
         short = s.errors.get("shortfall") or {}
