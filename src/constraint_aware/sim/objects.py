@@ -22,6 +22,7 @@ from constraint_aware.errors import (
     check_number,
     check_vector,
 )
+from constraint_aware.geometry import unit
 
 JointType = Literal["prismatic", "revolute"]
 HandleShape = Literal["bar", "pole", "plate", "knob"]
@@ -178,7 +179,7 @@ def object_frame(cfg: ObjectConfig) -> np.ndarray:
     - knob: up = the hinge axis signed upward (the hand presses the crank from above
       whichever way it turns).
     """
-    out = unit_vector(cfg.opening_direction)
+    out = unit(cfg.opening_direction)
     axis = np.asarray(cfg.axis, dtype=float)
     z = np.array([0.0, 0.0, 1.0])
     if cfg.handle == "bar" and cfg.joint_type == "revolute":
@@ -190,7 +191,7 @@ def object_frame(cfg: ObjectConfig) -> np.ndarray:
         side = bar - float(bar @ out) * out
         if np.linalg.norm(side) < 1e-6:
             raise InvalidInputError("handle_axis must not be parallel to the slide axis")
-        side = unit_vector(side)
+        side = unit(side)
         return np.stack([out, side, np.cross(out, side)], axis=1)
     else:
         up_ref = z
@@ -200,13 +201,9 @@ def object_frame(cfg: ObjectConfig) -> np.ndarray:
             f"the opening direction {tuple(np.round(out, 3))} must not be parallel to the "
             f"{'hinge axis' if up_ref is axis else 'vertical'} for a {cfg.handle} handle"
         )
-    side = unit_vector(side)
+    side = unit(side)
     up = np.cross(out, side)
     return np.stack([out, side, up], axis=1)
-
-
-def unit_vector(v: np.ndarray) -> np.ndarray:
-    return np.asarray(v, dtype=float) / float(np.linalg.norm(v))
 
 
 def object_mjcf(cfg: ObjectConfig) -> str:
