@@ -198,7 +198,7 @@ def test_settings_map_dotted_keys_and_parse_values() -> None:
             "executor.predictive_force=false",
             "executor.max_lead=none",
             "force_limit=40",
-            "workplane_normal=0,1,0",
+            "object.axis=0,1,0",  # the task's workplane normal follows the object (sim.tasks)
         ]
     )
     assert dict(s.task_overrides) == {
@@ -206,7 +206,7 @@ def test_settings_map_dotted_keys_and_parse_values() -> None:
         "object__radius": 0.08,
         "hand__translational_stiffness": 8000,
         "force_limit": 40,
-        "workplane_normal": (0, 1, 0),
+        "object__axis": (0, 1, 0),
     }
     assert dict(s.executor_overrides) == {
         "threshold": 1,
