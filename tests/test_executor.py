@@ -468,6 +468,10 @@ class NumpyDrawer:
         self.next: Pose | None = None
         self.held = 0
 
+    @property
+    def translational_stiffness(self) -> float:  # optional member: policies may use k delta
+        return self.k
+
     def _hand(self) -> np.ndarray:
         return self.s * U
 

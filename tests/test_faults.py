@@ -8,11 +8,13 @@ no success above the limit, a record every time, a named stop with a reason, hol
 
 from __future__ import annotations
 
+import functools
+
 import mujoco
 import numpy as np
 import pytest
 
-from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite, run_fault
+from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, FaultRun, fault_suite, run_fault
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.hand import FORCE_SENSOR, HAND_BODY, TCP_SITE, TORQUE_SENSOR, WRIST_SITE
@@ -32,6 +34,11 @@ EXPECTED = {
 }
 
 
+@functools.cache
+def baseline(task: str) -> FaultRun:
+    return run_fault(task, "none", policy=POLICY)
+
+
 @pytest.mark.parametrize("fault", list(FAULTS))
 @pytest.mark.parametrize("task", TASK_NAMES)
 def test_no_fault_makes_the_executor_dangerous(task: str, fault: str) -> None:
@@ -41,8 +48,8 @@ def test_no_fault_makes_the_executor_dangerous(task: str, fault: str) -> None:
     if fault in EXPECTED:
         assert result.outcome == EXPECTED[fault], (task, fault, result.reason)
     if fault.startswith(("pose_glitch", "nan_pose")):
-        # a single bad pose is not acted on: the run goes on (no force from the glitch)
-        assert result.classification == "continued", (task, fault, result.reason)
+        # a single bad pose is not acted on: the run ends as the fault-free run does
+        assert result.outcome == baseline(task).outcome, (task, fault, result.reason)
 
 
 def test_quick_suite_counts() -> None:

@@ -48,6 +48,8 @@ EXECUTOR_BAD: list[tuple[str, Any]] = [
     ("torque_alpha", 0.0),
     ("max_lead", -0.01),
     ("stale_steps", 1),
+    ("torque_policy", "yes"),
+    ("predictive_force", 1),
     ("constraint_type", "spherical"),
     ("command_from", "guess"),
 ]

@@ -143,6 +143,9 @@ class ExecutorConfig:
         name = "ExecutorConfig."
         check_choice(name + "constraint_type", self.constraint_type, ("prismatic", "revolute"))
         check_choice(name + "command_from", self.command_from, ("measured", "target"))
+        for flag in ("torque_policy", "predictive_force"):
+            if not isinstance(getattr(self, flag), bool):
+                raise ConfigError(name + flag, getattr(self, flag), "true or false")
         if self.workplane_normal is not None:
             normal = check_unit_vector(name + "workplane_normal", self.workplane_normal)
             object.__setattr__(self, "workplane_normal", normal)
