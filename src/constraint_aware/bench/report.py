@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from constraint_aware.bench.analysis import CellSummary, PolicySection
+from constraint_aware.bench.placement import report_lines as placement_report_lines
 
 
 def _f(x: float | None, digits: int = 1) -> str:
@@ -191,6 +192,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
                 )
             add(f"| {name} [{entry['unit']}] | {levels} | " + " | ".join(cells) + " |")
         add("")
+    if "placement" in results:
+        lines.extend(placement_report_lines(results["placement"]))
     if results.get("worst_cases"):
         add("## Worst cases of the constraint-aware policy\n")
         add(

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench import experiments as ex
+from constraint_aware.bench import placement
 from constraint_aware.bench.analysis import policy_section
 from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite
 from constraint_aware.bench.figures import draw_all
@@ -158,6 +159,7 @@ def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
         "peak_force_samples": ex.peak_force_samples(suite_runs),
     }
     all_runs = list(suite_runs)
+    results["placement"] = placement.bench_section(quick)
     if not quick:
         heatmap, hm_runs = ex.offset_heatmap(cfg)
         heatmap["full_success_halfwidth_deg"] = _full_success_halfwidth(heatmap)
