@@ -10,7 +10,7 @@ from typing import Protocol
 
 import mujoco
 
-from constraint_aware.sim.robot_adapter import SETTLE_TIME, TIMESTEP
+from constraint_aware.sim.robot_adapter import TIMESTEP
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose
 
@@ -22,6 +22,7 @@ class GraspingRobot(Protocol):
     model: mujoco.MjModel
     data: mujoco.MjData
     task: TaskConfig
+    settle_time: float
 
     def grasp_pose(self) -> Pose: ...
     def _place(self, pose: Pose) -> None: ...
@@ -42,7 +43,7 @@ def grasp(robot: GraspingRobot) -> None:
     press = robot.task.press_depth
     robot._apply_setpoint(pose.moved(pose.orientation.apply([0.0, 0.0, press])))
     mujoco.mj_forward(m, d)
-    settle = int(SETTLE_TIME / TIMESTEP)
+    settle = round(robot.settle_time / TIMESTEP)
     robot._step(settle)
     if press == 0.0:
         # no press: let the wrist rest where it settled (notes: closing pre-loads it)

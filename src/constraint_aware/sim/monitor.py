@@ -24,15 +24,17 @@ class GroundTruthMonitor:
     task: TaskConfig
     _tcp_site: int
 
-    def _bind_monitor(self, hand_geoms: set[int]) -> None:
-        """Resolve the object's names to ids once; `hand_geoms`: the hand's geom ids."""
+    def _bind_monitor(self, hand_geoms: set[int], prefix: str = "") -> None:
+        """Resolve the object's names to ids once; `hand_geoms`: the hand's geom ids; `prefix`:
+        the object's name prefix in a composed scene (sim/scene.py)."""
         m = self.model
-        self._obj_joint = m.joint(OBJECT_JOINT).id
+        self._obj_joint = m.joint(prefix + OBJECT_JOINT).id
         self._obj_qpos = int(m.jnt_qposadr[self._obj_joint])
-        self._handle_site = m.site(HANDLE_SITE).id
+        self._handle_site = m.site(prefix + HANDLE_SITE).id
         names = [m.geom(i).name for i in range(m.ngeom)]
         self._hand_geoms = hand_geoms
-        self._object_geoms = {i for i, n in enumerate(names) if n.startswith(OBJECT_GEOM_PREFIX)}
+        start = prefix + OBJECT_GEOM_PREFIX
+        self._object_geoms = {i for i, n in enumerate(names) if n.startswith(start)}
         self._grasp_rel: tuple[FloatArray, Rotation] | None = None
 
     def _record_grasp(self) -> None:

@@ -37,6 +37,7 @@ class SimulatedRobot(ABC):
     data: mujoco.MjData
     task: TaskConfig
     control_period_s: float = CONTROL_PERIOD
+    settle_time: float = SETTLE_TIME  # [s] of each settling phase of the grasp (sim/grasp.py)
 
     def _bind_sensor(self, wrist_site: str, tcp_site: str, force: str, torque: str) -> None:
         """Resolve the sensor's names to ids once."""
@@ -110,10 +111,26 @@ class SimulatedRobot(ABC):
         self._filtered = acc / FILTER_STEPS
         self._touched = touched
 
+    def set_sensor_noise(
+        self, rng: np.random.Generator, noise: float, bias: FloatArray | None = None
+    ) -> None:
+        """Gaussian noise `noise` [N] std per force axis (torque: noise / 10 [N m]) and a
+        constant force bias (3,) [N] on every reading from now on."""
+        self._noise_rng = rng
+        self._noise = float(noise)
+        self._bias = np.zeros(3) if bias is None else np.asarray(bias, dtype=float)
+
     def read_wrench(self) -> Wrench:
         """The wrist wrench averaged over the last 20 ms (a sensor's low-pass filter)."""
         w = self._filtered
-        return Wrench(force=w[:3].copy(), torque=w[3:].copy())
+        force, torque = w[:3].copy(), w[3:].copy()
+        rng = getattr(self, "_noise_rng", None)
+        if rng is None or (self._noise == 0.0 and not np.any(self._bias)):
+            return Wrench(force=force, torque=torque)
+        return Wrench(
+            force=force + self._bias + self._noise * rng.normal(size=3),
+            torque=torque + 0.1 * self._noise * rng.normal(size=3),
+        )
 
     def read_pose(self) -> Pose:
         d = self.data
@@ -140,11 +157,12 @@ class SimulatedRobot(ABC):
         start = self.commanded_pose()
         goal = self._next_pose if self._next_pose is not None else start
         slerp = Slerp([0.0, 1.0], Rotation.concatenate([start.orientation, goal.orientation]))
+        fractions = [i / RAMP_CHUNKS for i in range(1, RAMP_CHUNKS + 1)]
+        orientations = slerp(fractions)  # one call: slerp is slow per call, not per rotation
         n = round(self.control_period_s / TIMESTEP / RAMP_CHUNKS)
-        for i in range(1, RAMP_CHUNKS + 1):
-            f = i / RAMP_CHUNKS
+        for i, f in enumerate(fractions, start=1):
             self._apply_setpoint(
-                Pose(start.position + f * (goal.position - start.position), slerp(f))
+                Pose(start.position + f * (goal.position - start.position), orientations[i - 1])
             )
             if i < RAMP_CHUNKS:
                 self._step(n)

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.geometry import FloatArray
-from constraint_aware.sim.grasp import grasp
+from constraint_aware.sim.embodiment import Embodiment
 from constraint_aware.sim.hand import (
     ARM_JOINTS,
     FINGER_JOINTS,
@@ -29,7 +29,6 @@ from constraint_aware.sim.hand import (
     hand_mjcf,
     hand_sensors,
 )
-from constraint_aware.sim.monitor import GroundTruthMonitor
 from constraint_aware.sim.objects import OBJECT_BODY, object_mjcf
 from constraint_aware.sim.robot_adapter import (
     CONTROL_PERIOD,
@@ -37,7 +36,6 @@ from constraint_aware.sim.robot_adapter import (
     RAMP_CHUNKS,
     SETTLE_TIME,
     TIMESTEP,
-    SimulatedRobot,
 )
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose
@@ -93,7 +91,7 @@ def build_mjcf(task: TaskConfig) -> str:
 </mujoco>"""
 
 
-class ManipulationSim(GroundTruthMonitor, SimulatedRobot):
+class ManipulationSim(Embodiment):
     """One task in MuJoCo with the hook hand, from reset and grasp to per-period stepping.
 
     Typical use: `sim = ManipulationSim(task); sim.reset()` leaves the hand grasping the handle
@@ -180,7 +178,3 @@ class ManipulationSim(GroundTruthMonitor, SimulatedRobot):
         self._target = q
         d.qpos[self._finger_qpos] = [self.task.finger_angle, -self.task.finger_angle]
         d.ctrl[self._finger_act] = [self.task.finger_angle, -self.task.finger_angle]
-
-    def reset(self) -> None:
-        """Grasp the handle and settle (sim/grasp.py); F_d is read after."""
-        grasp(self)
