@@ -56,10 +56,11 @@ HAND_BODY = f"{ARM_PREFIX}{HAND_PREFIX}hand"
 LARGE_JOINT_TORQUE = 30.5  # [N m] Kinova datasheet peak torque (joints 1-3), via dm-control
 SMALL_JOINT_TORQUE = 6.8  # [N m] joints 4-6
 FINGER_TORQUE = 1.0  # [N m] dm-control's finger actuator force limit
-# The tool point on the hand's approach axis, 136 mm from the flange: the centre of the space the
-# three curled fingers enclose (measured on the meshes: a 27 mm bar there clears the palm by
-# ~0.5 mm and, fingers at 1.25 rad, is caught by the fingertips after ~5 mm of pull).
-TCP_FROM_FLANGE = 0.136  # [m]
+# The tool point on the hand's approach axis, 139 mm from the flange: the centre of a bar the
+# curled fingers hook (measured on the meshes' hulls: with the fingers at 1.25 rad a 27 mm bar
+# centred here rests on the fingertips, ~4 mm clear of the palm; 3 mm nearer the palm it would
+# have ~4 mm of slack before the fingertips catch it, and the hand would start out of contact).
+TCP_FROM_FLANGE = 0.139  # [m]
 _IK_CACHE: dict[tuple[float, ...], FloatArray] = {}  # grasp configurations, see _solve_ik
 
 
@@ -110,6 +111,9 @@ class OscConfig:
     posture_damping: float = 1.0  # [N m s/rad]
     limit_margin: float = 0.15  # [rad] joint-limit repulsion starts this far from a limit
     limit_stiffness: float = 50.0  # [N m/rad] of the repulsion
+    friction_compensation: float = 0.0  # [-] fraction of each joint's model frictionloss fed
+    # forward in the direction of the commanded torque (tanh over `friction_torque_scale`)
+    friction_torque_scale: float = 0.2  # [N m]
     finger_stiffness: float = 5.0  # [N m/rad] finger position servo
     finger_damping: float = 0.05  # [N m s/rad]
 
@@ -180,13 +184,24 @@ def _arm_spec(model_dir: Path) -> mujoco.MjSpec:
     return arm
 
 
-def arm_base(task: TaskConfig) -> FloatArray:
-    """(3,) [m] where the arm's base stands: behind the hand at the middle of the motion.
+#: Where the base stands relative to the handle's mid-motion position, per (joint type, handle):
+#: (horizontal distance [m], azimuth from the pull direction toward `side` [deg], height [m]).
+#: The azimuth is the one (of 0, +-15, +-45, +-90 deg) whose inverse kinematics keeps the
+#: largest joint-limit margin along the motion (0-120 % of success; a controller-independent
+#: workspace criterion): drawer 0.59 rad, plate 1.08, pole 1.00, door 1.30, knob 1.06.
+BASE_PLACEMENT: dict[tuple[str, str], tuple[float, float, float]] = {
+    ("prismatic", "bar"): (0.55, 45.0, -0.3),
+    ("prismatic", "pole"): (0.55, 45.0, -0.3),
+    ("prismatic", "plate"): (0.45, -90.0, -0.1),
+    ("revolute", "bar"): (0.55, 90.0, -0.3),
+    ("revolute", "knob"): (0.45, -90.0, -0.1),
+}
 
-    Horizontal approaches (bars, poles): 0.55 m back from the handle's mid-motion position
-    along the approach, 0.15 m aside, 0.3 m below (shoulder near handle height). Pressing from
-    above (plates, knobs): 0.45 m aside of the mid-motion position, 0.1 m below.
-    """
+
+def arm_base(task: TaskConfig, placement: tuple[float, float, float] | None = None) -> FloatArray:
+    """(3,) [m] where the arm's base stands, from the object's pose: `placement` (default
+    `BASE_PLACEMENT` of the object kind) from the handle's position half-way to success, in
+    that position's (pull direction, side, up) frame."""
     obj = task.object
     frame = object_frame(obj)
     out, side, up = frame[:, 0], frame[:, 1], frame[:, 2]
@@ -199,9 +214,12 @@ def arm_base(task: TaskConfig) -> FloatArray:
         pivot = np.asarray(obj.position, float)
         mid = pivot + turn.apply(handle - pivot)
     out, side = turn.apply(out), turn.apply(side)
-    if obj.handle in ("bar", "pole"):
-        return mid + 0.55 * out + 0.15 * side - 0.3 * up
-    return mid + 0.45 * side - 0.1 * up
+    kind = (obj.joint_type, obj.handle)
+    if placement is None and kind not in BASE_PLACEMENT:
+        raise InvalidInputError(f"no Jaco base placement for a {kind[0]} {kind[1]}")
+    reach, azimuth, height = placement or BASE_PLACEMENT[kind]
+    a = np.radians(azimuth)
+    return mid + reach * (np.cos(a) * out + np.sin(a) * side) + height * up
 
 
 class JacoSim(Embodiment):
@@ -219,6 +237,7 @@ class JacoSim(Embodiment):
         task: TaskConfig,
         osc: OscConfig | None = None,
         control_period: float = CONTROL_PERIOD,
+        base: FloatArray | None = None,
     ) -> None:
         if task.object.handle not in JACO_GRASPS:
             raise InvalidInputError(
@@ -228,7 +247,7 @@ class JacoSim(Embodiment):
         self.osc = osc or OscConfig()
         self.control_period_s = control_period
         self.grasp_kind = JACO_GRASPS[task.object.handle]
-        self.base = arm_base(task)
+        self.base = arm_base(task) if base is None else np.asarray(base, dtype=float)
         self.model = build_model(task, self.base)
         self.data = mujoco.MjData(self.model)
         m = self.model
@@ -268,6 +287,8 @@ class JacoSim(Embodiment):
         self._dof_slice = _consecutive(self._arm_dof, "arm dofs")
         self._qpos_slice = _consecutive(self._arm_qpos, "arm joint positions")
         self._err = np.zeros(6)
+        fric = self.osc.friction_compensation * m.dof_frictionloss[self._dof_slice]
+        self._friction = fric if np.any(fric) else None
         self._eps = 1e-6 * np.eye(6)  # keeps Lambda finite at a singular configuration
 
     def _is_in_subtree(self, body: int, root: int) -> bool:
@@ -297,7 +318,10 @@ class JacoSim(Embodiment):
         tau0 = self.osc.posture_stiffness * self._wrapped(self._posture - q)
         tau0 -= self.osc.posture_damping * qvel
         tau0 -= self._limit_gain * (np.minimum(q - self._lo, 0.0) + np.maximum(q - self._hi, 0.0))
-        tau = j_arm.T @ (wrench - lam @ (minv_arm @ tau0)) + tau0 + d.qfrc_bias[dofs]
+        tau = j_arm.T @ (wrench - lam @ (minv_arm @ tau0)) + tau0
+        if self._friction is not None:
+            tau += self._friction * np.tanh(tau / self.osc.friction_torque_scale)
+        tau += d.qfrc_bias[dofs]
         np.clip(tau, -self._torque_limit, self._torque_limit, out=d.ctrl[self._act_slice])
 
     @staticmethod
