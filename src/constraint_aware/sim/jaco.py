@@ -19,9 +19,11 @@ diag(k_t I3, k_r I3); D = 2 zeta sqrt(K) sqrt(diag Lambda), Lambda = (J M^-1 J^T
 task-space inertia from `mj_solveM` (each axis damped at `damping_ratio` of its own apparent
 mass); qfrc_bias compensates gravity (arm, hand) and Coriolis terms; N^T = I - J^T Lambda J M^-1
 is the dynamically consistent null-space projector carrying a joint-space posture spring (toward
-the grasp configuration) and a repulsion within `limit_margin` of a joint limit. The wrist
-sensor reads the wrench between flange and hand, so the arm's joint friction (dm-control's
-model: 2 N m / 1 N m frictionloss, armature 4 / 2 kg m^2) shows as tracking error, not as force.
+the grasp configuration) and a repulsion within `limit_margin` of a joint limit; the joints' dry
+friction (dm-control's model: 2 N m / 1 N m frictionloss) is fed forward in the direction of the
+commanded torque. The motors are torque sources (`motor` actuators, clipped at the limits). The
+wrist sensor reads the wrench between flange and hand, so the arm's remaining friction and its
+large reflected inertia (armature 4 / 2 kg m^2) show as tracking error and lag, not as force.
 """
 
 from __future__ import annotations
@@ -111,8 +113,11 @@ class OscConfig:
     posture_damping: float = 1.0  # [N m s/rad]
     limit_margin: float = 0.15  # [rad] joint-limit repulsion starts this far from a limit
     limit_stiffness: float = 50.0  # [N m/rad] of the repulsion
-    friction_compensation: float = 0.0  # [-] fraction of each joint's model frictionloss fed
-    # forward in the direction of the commanded torque (tanh over `friction_torque_scale`)
+    friction_compensation: float = 1.0  # [-] fraction of each joint's model frictionloss fed
+    # forward in the direction of the commanded torque (tanh over `friction_torque_scale`), as
+    # torque-controlled arms do: without it the joints' dry friction leaves a dead zone
+    # (measured in free space at 1000 N/m: 12 mm and 4 deg of a 20 mm / 6 deg step remain
+    # after 4 s; with it 1.8 mm and 1.5 deg)
     friction_torque_scale: float = 0.2  # [N m]
     finger_stiffness: float = 5.0  # [N m/rad] finger position servo
     finger_damping: float = 0.05  # [N m s/rad]
