@@ -195,3 +195,23 @@ def test_robot_specs_and_variants() -> None:
 def test_rotvec_matches_scipy() -> None:
     for rot in Rotation.random(50, random_state=0):
         np.testing.assert_allclose(rotvec(rot.as_matrix()), rot.as_rotvec(), atol=1e-9)
+
+
+def test_embodiment_experiment_types_and_report_table() -> None:
+    from constraint_aware.bench.embodiment import embodiment_experiments
+    from constraint_aware.bench.report import _embodiment_section
+
+    res = embodiment_experiments(
+        seeds=1,
+        robots=("jaco",),
+        controllers=("policy",),
+        variants=False,
+        tasks=("plate-sliding",),
+        low_threshold=False,
+    )
+    assert [(c.task, c.robot, c.controller, c.n) for c in res.transfer] == [
+        ("plate-sliding", "jaco", "policy", 1)
+    ]
+    assert res.paper[0].n == 1 and 0.0 <= res.paper[0].success_rate <= 1.0
+    text = "\n".join(_embodiment_section(res.to_dict()))
+    assert "| plate-sliding | policy |" in text

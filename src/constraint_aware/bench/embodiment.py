@@ -9,7 +9,7 @@ shipped one, and nothing is tuned per embodiment. Three experiments:
 - paper: the paper's conditions (bench/experiments.py's `PAPER_RUNS`) on each embodiment, with
   the executor's default dead band and with a 0.4 N one;
 - variants: the paper's conditions with the arm's Cartesian stiffness (500-20,000 N/m) and the
-  control period (50-200 ms) varied, on each embodiment.
+  control period (50-200 ms) varied, on each embodiment (policy and classical).
 """
 
 from __future__ import annotations
@@ -146,15 +146,32 @@ def paper_specs(robot: str, controllers: Sequence[str] = CONTROLLERS) -> list[Ru
     ]
 
 
+def for_bench(quick: bool, seeds: int) -> EmbodimentResults:
+    """`cap bench`'s share: quick = the paper's conditions on the arm with the policy and the
+    classical controller (12 runs); full = everything with `seeds` suite seeds."""
+    if quick:
+        return embodiment_experiments(
+            seeds=0,
+            robots=("jaco",),
+            controllers=("policy", "classical"),
+            variants=False,
+            low_threshold=False,
+        )
+    return embodiment_experiments(seeds=seeds)
+
+
 def embodiment_experiments(
     seeds: int = 20,
     robots: Sequence[str] = ROBOTS,
     controllers: Sequence[str] = CONTROLLERS,
     variants: bool = True,
     tasks: Sequence[str] = tuple(TASKS),
+    low_threshold: bool = True,
+    variant_controllers: Sequence[str] = ("policy", "classical"),
 ) -> EmbodimentResults:
-    """The transfer suite (`seeds` per task; 0 skips it), the paper's conditions at both dead
-    bands, and (variants=True) the stiffness and period variants, on every robot."""
+    """The transfer suite (`seeds` per task; 0 skips it), the paper's conditions at the
+    executor's default dead band (and at `LOW_THRESHOLD` if `low_threshold`), and (variants)
+    the stiffness and period variants with `variant_controllers`, on every robot."""
     start = time.perf_counter()
     for robot in robots:
         if robot not in EMBODIMENTS:
@@ -168,16 +185,18 @@ def embodiment_experiments(
             res.transfer += _grouped(_run_all(specs))
         paper = [s for s in paper_specs(robot, controllers) if s.task in tasks]
         res.paper += _grouped(_run_all(paper), "threshold", None)
-        res.paper += _grouped(
-            _run_all(paper, {"threshold": LOW_THRESHOLD}), "threshold", LOW_THRESHOLD
-        )
+        if low_threshold:
+            res.paper += _grouped(
+                _run_all(paper, {"threshold": LOW_THRESHOLD}), "threshold", LOW_THRESHOLD
+            )
         if not variants:
             continue
+        base = [s for s in paper if s.controller in variant_controllers]
         for k in STIFFNESS_LEVELS:
-            specs = [dataclasses.replace(s, robot=f"{robot}:stiffness={k:g}") for s in paper]
+            specs = [dataclasses.replace(s, robot=f"{robot}:stiffness={k:g}") for s in base]
             res.variants += _grouped(_run_all(specs), "stiffness", k)
         for p in PERIOD_LEVELS:
-            specs = [dataclasses.replace(s, robot=f"{robot}:period={p:g}") for s in paper]
+            specs = [dataclasses.replace(s, robot=f"{robot}:period={p:g}") for s in base]
             res.variants += _grouped(_run_all(specs), "period", p)
     res.simulated_period_s = {f"{p:g}": simulated_period(p) for p in PERIOD_LEVELS}
     res.wall_time_s = time.perf_counter() - start

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench import experiments as ex
+from constraint_aware.bench.embodiment import for_bench as embodiment_for_bench
 from constraint_aware.bench.figures import draw_all
 from constraint_aware.bench.report import write_report
 from constraint_aware.bench.sweep import SUITE_OFFSET_RANGE
@@ -100,6 +101,7 @@ def run_bench(out: str | Path, quick: bool = False, workers: int | None = None) 
         "table": table,
         "peak_force_samples": ex.peak_force_samples(suite_runs),
     }
+    results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds).to_dict()
     all_runs = list(suite_runs)
     if not quick:
         heatmap, hm_runs = ex.offset_heatmap(cfg)
