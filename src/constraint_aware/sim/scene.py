@@ -8,6 +8,8 @@ prefix to keep the composed model savable).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import mujoco
 import numpy as np
 
@@ -18,8 +20,11 @@ from constraint_aware.sim.tasks import TaskConfig
 OBJECT_PREFIX = "obj:"  # the object's names in a composed scene: "obj:object_joint", ...
 
 
-def scene_spec(task: TaskConfig) -> mujoco.MjSpec:
-    """The world of a task without a robot: options, floor, light and the object."""
+def scene_spec(
+    task: TaskConfig, robot: Callable[[mujoco.MjSpec], None] | None = None
+) -> mujoco.MjSpec:
+    """The world of a task: options, floor, light, the robot (`robot(spec)` composes it, before
+    the object so that its bodies come first) and the object."""
     spec = mujoco.MjSpec()
     spec.modelname = task.name
     spec.compiler.degree = False
@@ -29,6 +34,18 @@ def scene_spec(task: TaskConfig) -> mujoco.MjSpec:
     spec.option.impratio = 5.0
     spec.visual.global_.offwidth = 640
     spec.visual.global_.offheight = 480
+    spec.visual.quality.shadowsize = 2048
+    spec.add_texture(
+        name="grid",
+        type=mujoco.mjtTexture.mjTEXTURE_2D,
+        builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+        rgb1=[0.85, 0.85, 0.85],
+        rgb2=[0.75, 0.75, 0.75],
+        width=256,
+        height=256,
+    )
+    grid = spec.add_material(name="grid", texrepeat=[8.0, 8.0])
+    grid.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "grid"
     focus = np.asarray(task.object.handle_position, dtype=float)
     spec.worldbody.add_light(
         pos=[focus[0] + 1.0, focus[1] - 1.0, 3.0],
@@ -39,10 +56,12 @@ def scene_spec(task: TaskConfig) -> mujoco.MjSpec:
         name="scene_floor",
         type=mujoco.mjtGeom.mjGEOM_PLANE,
         size=[3.0, 3.0, 0.1],
-        rgba=[0.8, 0.8, 0.8, 1.0],
+        material="grid",
         contype=0,
         conaffinity=0,
     )
+    if robot is not None:
+        robot(spec)
     attach_object(spec, task)
     spec.worldbody.add_camera(
         name="overview",

@@ -3,8 +3,9 @@
 `ManipulationSim` satisfies the executor's `Robot` protocol (wrench, pose, command, advance;
 sim/robot_adapter.py) and its `TaskMonitor` protocol (admissible direction, progress, slip,
 success; sim/monitor.py) without importing the executor. This module holds only what is
-specific to this hand: its model (`build_mjcf`), the pose <-> arm-joint mapping of its virtual
-arm, and where it holds each handle. The grasp choreography is sim/grasp.py.
+specific to this hand: its model (`build_spec`: the scene with the hand composed in), the
+pose <-> arm-joint mapping of its virtual arm, and where it holds each handle. The grasp
+choreography is sim/grasp.py.
 """
 
 from __future__ import annotations
@@ -19,17 +20,12 @@ from constraint_aware.sim.hand import (
     ARM_JOINTS,
     FINGER_JOINTS,
     FORCE_SENSOR,
-    HAND_BODY,
     HAND_GEOM_PREFIX,
     TCP_SITE,
     TORQUE_SENSOR,
     WRIST_SITE,
-    hand_actuators,
-    hand_defaults,
-    hand_mjcf,
-    hand_sensors,
+    hand_spec,
 )
-from constraint_aware.sim.objects import OBJECT_BODY, object_mjcf
 from constraint_aware.sim.robot_adapter import (
     CONTROL_PERIOD,
     FILTER_STEPS,
@@ -37,6 +33,7 @@ from constraint_aware.sim.robot_adapter import (
     SETTLE_TIME,
     TIMESTEP,
 )
+from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose
 
@@ -48,47 +45,27 @@ __all__ = [
     "TIMESTEP",
     "ManipulationSim",
     "build_mjcf",
+    "build_spec",
 ]
 
 
+HOOK_PREFIX = "hook:"  # the hook hand's names in the composed scene: "hook:arm_x", ...
+
+
+def build_spec(task: TaskConfig) -> mujoco.MjSpec:
+    """A task's scene (sim/scene.py) with the hook hand on its virtual arm composed in."""
+    x, y, z, w = Rotation.from_matrix(task.hand_mount()).as_quat()
+
+    def attach_hand(spec: mujoco.MjSpec) -> None:
+        frame = spec.worldbody.add_frame()
+        spec.attach(hand_spec(task.hand, (w, x, y, z)), prefix=HOOK_PREFIX, frame=frame)
+
+    return scene_spec(task, attach_hand)
+
+
 def build_mjcf(task: TaskConfig) -> str:
-    """The complete MJCF of a task: floor, light, camera, hand on its arm, object."""
-    mount = Rotation.from_matrix(task.hand_mount())
-    x, y, z, w = mount.as_quat()
-    focus = task.object.handle_position
-    return f"""
-<mujoco model="{task.name}">
-  <compiler angle="radian"/>
-  <option timestep="{TIMESTEP}" integrator="implicitfast" cone="elliptic" impratio="5"/>
-  <visual><global offwidth="640" offheight="480"/><quality shadowsize="2048"/></visual>
-  <default>
-    <default class="hand">{hand_defaults(task.hand)}</default>
-  </default>
-  <asset>
-    <texture name="grid" type="2d" builtin="checker" rgb1=".85 .85 .85" rgb2=".75 .75 .75"
-             width="256" height="256"/>
-    <material name="grid" texture="grid" texrepeat="8 8"/>
-  </asset>
-  <worldbody>
-    <light pos="{focus[0] + 1:.3f} {focus[1] - 1:.3f} 3" dir="-0.3 0.3 -1" directional="true"/>
-    <geom name="scene_floor" type="plane" size="3 3 0.1" material="grid"
-          contype="0" conaffinity="0"/>
-    <camera name="overview" mode="targetbody" target="{OBJECT_BODY}"
-            pos="{focus[0] + 0.9:.3f} {focus[1] - 0.9:.3f} {focus[2] + 0.7:.3f}"/>
-    {
-        hand_mjcf(task.hand, (w, x, y, z)).replace(
-            f'name="{HAND_BODY}"', f'name="{HAND_BODY}" childclass="hand"'
-        )
-    }
-    {object_mjcf(task.object)}
-  </worldbody>
-  <actuator>
-    {hand_actuators(task.hand)}
-  </actuator>
-  <sensor>
-    {hand_sensors()}
-  </sensor>
-</mujoco>"""
+    """The complete MJCF of a task (the composed spec, written out)."""
+    return str(build_spec(task).to_xml())
 
 
 class ManipulationSim(Embodiment):
@@ -105,20 +82,20 @@ class ManipulationSim(Embodiment):
         control_period: float = CONTROL_PERIOD,
     ) -> None:
         self.task = task
-        self.model = (
-            model if model is not None else mujoco.MjModel.from_xml_string(build_mjcf(task))
-        )
+        self.model = model if model is not None else build_spec(task).compile()
         self.data = mujoco.MjData(self.model)
         self.control_period_s = control_period
         m = self.model
         # names -> ids, once
-        self._arm_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in ARM_JOINTS])
-        self._finger_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in FINGER_JOINTS])
-        self._arm_act = np.array([m.actuator(j).id for j in ARM_JOINTS])
-        self._finger_act = np.array([m.actuator(j).id for j in FINGER_JOINTS])
-        self._bind_sensor(WRIST_SITE, TCP_SITE, FORCE_SENSOR, TORQUE_SENSOR)
+        h = HOOK_PREFIX
+        self._arm_qpos = np.array([m.jnt_qposadr[m.joint(h + j).id] for j in ARM_JOINTS])
+        self._finger_qpos = np.array([m.jnt_qposadr[m.joint(h + j).id] for j in FINGER_JOINTS])
+        self._arm_act = np.array([m.actuator(h + j).id for j in ARM_JOINTS])
+        self._finger_act = np.array([m.actuator(h + j).id for j in FINGER_JOINTS])
+        self._bind_sensor(h + WRIST_SITE, h + TCP_SITE, h + FORCE_SENSOR, h + TORQUE_SENSOR)
         names = [m.geom(i).name for i in range(m.ngeom)]
-        self._bind_monitor({i for i, n in enumerate(names) if n.startswith(HAND_GEOM_PREFIX)})
+        hand = {i for i, n in enumerate(names) if n.startswith(h + HAND_GEOM_PREFIX)}
+        self._bind_monitor(hand, OBJECT_PREFIX)
         self._mount = Rotation.from_matrix(task.hand_mount())
         self._tcp_local = np.array([0.0, 0.0, task.hand.tcp_depth])
         self._target = np.zeros(6)
