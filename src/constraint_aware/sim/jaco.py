@@ -211,11 +211,12 @@ def arm_base(task: TaskConfig, placement: tuple[float, float, float] | None = No
     frame = object_frame(obj)
     out, side, up = frame[:, 0], frame[:, 1], frame[:, 2]
     handle = obj.handle_position
+    half = 0.5 * min(task.success_progress, obj.joint_range[1])  # the joint cannot go further
     if obj.joint_type == "prismatic":
-        mid = handle + 0.5 * task.success_progress * np.asarray(obj.axis, float)
+        mid = handle + half * np.asarray(obj.axis, float)
         turn = Rotation.identity()
     else:
-        turn = Rotation.from_rotvec(0.5 * task.success_progress * np.asarray(obj.axis, float))
+        turn = Rotation.from_rotvec(half * np.asarray(obj.axis, float))
         pivot = np.asarray(obj.position, float)
         mid = pivot + turn.apply(handle - pivot)
     out, side = turn.apply(out), turn.apply(side)
