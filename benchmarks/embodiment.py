@@ -1,6 +1,6 @@
 """The embodiment axis: controllers unchanged on the hook hand and the Jaco arm. Writes JSON.
 
-    python benchmarks/embodiment.py [--seeds 20] [--no-variants] [--robots hook-hand,jaco]
+    python benchmarks/embodiment.py [--seeds 20] [--no-variants] [--no-paper] [--robots R1,R2]
 
 The 20-seed randomized suite, the paper's conditions (executor default dead band and 0.4 N),
 and the stiffness / control-period variants (bench/embodiment.py); one process.
@@ -22,10 +22,14 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--robots", default="hook-hand,jaco")
     parser.add_argument("--no-variants", action="store_true")
+    parser.add_argument("--no-paper", action="store_true")
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args()
     res = embodiment_experiments(
-        seeds=args.seeds, robots=args.robots.split(","), variants=not args.no_variants
+        seeds=args.seeds,
+        robots=args.robots.split(","),
+        variants=not args.no_variants,
+        paper=not args.no_paper,
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(res.to_dict(), indent=1) + "\n")

@@ -168,8 +168,9 @@ def embodiment_experiments(
     tasks: Sequence[str] = tuple(TASKS),
     low_threshold: bool = True,
     variant_controllers: Sequence[str] = ("policy", "classical"),
+    paper: bool = True,
 ) -> EmbodimentResults:
-    """The transfer suite (`seeds` per task; 0 skips it), the paper's conditions at the
+    """The transfer suite (`seeds` per task; 0 skips it), (paper) the paper's conditions at the
     executor's default dead band (and at `LOW_THRESHOLD` if `low_threshold`), and (variants)
     the stiffness and period variants with `variant_controllers`, on every robot."""
     start = time.perf_counter()
@@ -183,15 +184,16 @@ def embodiment_experiments(
                 dataclasses.replace(s, robot=robot) for s in suite_specs(seeds, controllers, tasks)
             ]
             res.transfer += _grouped(_run_all(specs))
-        paper = [s for s in paper_specs(robot, controllers) if s.task in tasks]
-        res.paper += _grouped(_run_all(paper), "threshold", None)
-        if low_threshold:
+        conditions = [s for s in paper_specs(robot, controllers) if s.task in tasks]
+        if paper:
+            res.paper += _grouped(_run_all(conditions), "threshold", None)
+        if paper and low_threshold:
             res.paper += _grouped(
-                _run_all(paper, {"threshold": LOW_THRESHOLD}), "threshold", LOW_THRESHOLD
+                _run_all(conditions, {"threshold": LOW_THRESHOLD}), "threshold", LOW_THRESHOLD
             )
         if not variants:
             continue
-        base = [s for s in paper if s.controller in variant_controllers]
+        base = [s for s in conditions if s.controller in variant_controllers]
         for k in STIFFNESS_LEVELS:
             specs = [dataclasses.replace(s, robot=f"{robot}:stiffness={k:g}") for s in base]
             res.variants += _grouped(_run_all(specs), "stiffness", k)
