@@ -21,7 +21,8 @@ mass); qfrc_bias compensates gravity (arm, hand) and Coriolis terms; N^T = I - J
 is the dynamically consistent null-space projector carrying a joint-space posture spring (toward
 the grasp configuration) and a repulsion within `limit_margin` of a joint limit; the joints' dry
 friction (dm-control's model: 2 N m / 1 N m frictionloss) is fed forward in the direction of the
-commanded torque. The motors are torque sources (`motor` actuators, clipped at the limits). The
+commanded torque. The motors are torque sources (`motor` actuators); at a motor's limit the
+task torque is scaled down as a whole (clipping joint by joint turns the force). The
 wrist sensor reads the wrench between flange and hand, so the arm's remaining friction and its
 large reflected inertia (armature 4 / 2 kg m^2) show as tracking error and lag, not as force.
 """
@@ -327,8 +328,14 @@ class JacoSim(Embodiment):
         tau = j_arm.T @ (wrench - lam @ (minv_arm @ tau0)) + tau0
         if self._friction is not None:
             tau += self._friction * np.tanh(tau / self.osc.friction_torque_scale)
-        tau += d.qfrc_bias[dofs]
-        np.clip(tau, -self._torque_limit, self._torque_limit, out=d.ctrl[self._act_slice])
+        bias = d.qfrc_bias[dofs]
+        # at a motor's limit, scale the whole task torque down rather than clip joints one by
+        # one: clipping would turn the Cartesian force away from the commanded direction
+        room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
+        excess = float(np.max(np.abs(tau) / room))
+        if excess > 1.0:
+            tau /= excess
+        np.clip(tau + bias, -self._torque_limit, self._torque_limit, out=d.ctrl[self._act_slice])
 
     @staticmethod
     def _wrapped(a: FloatArray) -> FloatArray:
