@@ -104,4 +104,4 @@ def test_replot_of_a_missing_dir_is_a_clear_error(tmp_path: Path) -> None:
         timeout=120,
     )
     assert proc.returncode == 2
-    assert "results.json" in proc.stdout
+    assert "results.json" in proc.stderr

@@ -1,13 +1,17 @@
-"""Tiny-budget subprocess smoke tests of every `cap` command."""
+"""`cap` subcommands: smoke tests (subprocess, tiny budgets) and the CLI's conventions."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+
+from constraint_aware.cli import build_parser, main
 
 
 def cap(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
@@ -20,13 +24,172 @@ def cap(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]
     )
 
 
-def test_help_lists_subcommands() -> None:
+def options_of(*argv: str) -> set[str]:
+    parser = build_parser(list(argv))
+    sub = next(a for a in parser._actions if a.dest == "command")
+    chosen = sub.choices[argv[0]]  # type: ignore[index]
+    return {s for a in chosen._actions for s in a.option_strings}
+
+
+# --- conventions ------------------------------------------------------------------------------
+def test_help_lists_subcommands_and_exit_codes() -> None:
     out = cap("--help")
     assert out.returncode == 0
-    for name in ("train", "eval", "run", "view"):
+    for name in ("train", "eval", "run", "view", "bench", "lfo"):
         assert name in out.stdout
+    assert "exit codes: 0 success; 1" in " ".join(out.stdout.split())
 
 
+def test_version_from_package_metadata() -> None:
+    from importlib.metadata import version
+
+    out = cap("--version")
+    assert out.returncode == 0
+    assert out.stdout.strip() == f"cap {version('constraint-aware')}"
+
+
+def test_run_help_shows_defaults_and_choices() -> None:
+    out = cap("run", "--help")
+    assert out.returncode == 0
+    text = " ".join(out.stdout.split())
+    assert "{policy,fixed,projection,classical}" in text
+    assert "drawer-opening,plate-sliding" in text
+    assert "(default: 30.0)" in text  # --offset-deg, from RunSpec
+
+
+def test_train_flags_reach_every_training_and_environment_field() -> None:
+    pytest.importorskip("stable_baselines3")
+    from constraint_aware.training.config import EnvConfig
+    from constraint_aware.training.ppo import TrainConfig
+
+    options = options_of("train")
+    for f in dataclasses.fields(TrainConfig):
+        if f.name != "env":
+            assert "--" + f.name.replace("_", "-") in options, f.name
+    for f in dataclasses.fields(EnvConfig):
+        assert "--env." + f.name.replace("_", "-") in options, f.name
+
+
+def test_train_flags_parse_into_the_configs() -> None:
+    pytest.importorskip("stable_baselines3")
+    from constraint_aware.cli_flags import collect
+
+    args = build_parser(["train"]).parse_args(
+        ["train", "--preset", "paper", "--steps", "1000", "--net-arch", "64", "64",
+         "--env.friction", "0", "0.2", "--no-env.noise-every-step"]
+    )  # fmt: skip
+    assert collect(args, args.train_specs) == {"total_timesteps": 1000, "net_arch": (64, 64)}
+    assert collect(args, args.env_specs) == {"friction": (0.0, 0.2), "noise_every_step": False}
+
+
+def test_run_flags_reach_every_run_spec_field() -> None:
+    from constraint_aware.control.simulate import RunSpec
+
+    options = options_of("run", "drawer-opening")
+    for f in dataclasses.fields(RunSpec):
+        if f.name not in ("task", "overrides", "controller_params"):  # positional; --set
+            assert "--" + f.name.replace("_", "-") in options, f.name
+
+
+def test_run_unknown_task_is_a_usage_error_on_stderr() -> None:
+    out = cap("run", "nosuchtask")
+    assert out.returncode == 2
+    assert "drawer-opening" in out.stderr and out.stdout == ""
+
+
+def test_markup_in_user_text_is_printed_verbatim(tmp_path: Path) -> None:
+    out = cap("run", "drawer[/]")
+    assert out.returncode == 2 and "drawer[/]" in out.stderr and "Traceback" not in out.stderr
+    out = cap("eval", "--policy", str(tmp_path / "[bold]x[/].npz"))  # a CapError's message
+    assert out.returncode == 2
+    assert "[bold]x[/].npz" in out.stderr and "Traceback" not in out.stderr
+
+
+def test_failed_run_exits_1_and_writes_strict_json(tmp_path: Path) -> None:
+    out = cap(
+        "run", "drawer-opening", "--controller", "fixed", "--offset", "75",
+        "--json", str(tmp_path / "r.json"),
+    )  # fmt: skip
+    assert out.returncode == 1, out.stderr
+    text = (tmp_path / "r.json").read_text()
+    data = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON {c}"))
+    assert data["summary"]["success"] is False and data["outcome"] == "force_limit"
+
+
+@pytest.mark.parametrize(
+    ("flag", "path", "message"),
+    [
+        ("--plot", "x.txt", "'.txt'"),
+        ("--video", "x.avi", "'.avi'"),
+        ("--json", "x.csv", "'.csv'"),
+    ],
+)
+def test_output_suffixes_checked_before_the_run(
+    tmp_path: Path, flag: str, path: str, message: str
+) -> None:
+    out = cap("run", "drawer-opening", "--json", str(tmp_path / "r.json"), flag, path)
+    assert out.returncode == 2 and message in out.stderr
+    assert not (tmp_path / "r.json").exists()  # a run would have written its record first
+    assert "steps" not in out.stdout
+
+
+def test_mp4_without_the_video_extra_fails_at_once(tmp_path: Path) -> None:
+    code = (
+        "import sys; sys.modules['imageio_ffmpeg'] = None; "
+        "from constraint_aware.cli import main; "
+        f"sys.exit(main(['run', 'drawer-opening', '--json', {str(tmp_path / 'r.json')!r}, "
+        f"'--video', {str(tmp_path / 'v.mp4')!r}]))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 2
+    assert "'video' extra" in out.stderr
+    assert not (tmp_path / "r.json").exists()
+
+
+def test_json_to_stdout_keeps_human_lines_on_stderr() -> None:
+    out = cap("run", "drawer-opening", "--offset", "-30", "--json", "-")
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["summary"]["success"] is True
+    assert "success" in out.stderr
+
+
+def test_write_error_after_the_result_is_clean() -> None:
+    out = cap("run", "drawer-opening", "--offset", "-30", "--json", "/proc/no-such-dir/r.json")
+    assert out.returncode == 2
+    assert "cannot write" in out.stderr and "Traceback" not in out.stderr
+    assert "success" in out.stdout  # the result itself was reported
+
+
+class _Boom(RuntimeError):
+    pass
+
+
+@pytest.mark.parametrize(("exc_type", "code"), [(KeyboardInterrupt, 130), (_Boom, 1)])
+def test_run_writes_the_attached_record_on_exceptions(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, exc_type: type[BaseException], code: int
+) -> None:
+    """The executor attaches the record as exc.run_record; the CLI writes it and exits."""
+    import constraint_aware.control.simulate as simulate
+    from constraint_aware.control.record import RunRecord
+
+    partial = RunRecord({"task": "drawer-opening"}, [0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+    partial.outcome, partial.reason = "error", "interrupted"
+
+    def raising_run(*_a: object, **_k: object) -> None:
+        exc = exc_type("stop")
+        exc.run_record = partial  # type: ignore[attr-defined]
+        raise exc
+
+    monkeypatch.setattr(simulate, "run", raising_run)
+    rc = main(
+        ["run", "drawer-opening", "--controller", "fixed", "--json", str(tmp_path / "a.json")]
+    )
+    assert rc == code
+    data = json.loads((tmp_path / "a.json").read_text())
+    assert data["outcome"] == "error" and data["summary"]["progress"] is None  # NaN -> null
+
+
+# --- subcommand smoke tests -------------------------------------------------------------------
 def test_eval_writes_json(tmp_path: Path) -> None:
     out = cap("eval", "--episodes", "500", "--json", str(tmp_path / "e.json"))
     assert out.returncode == 0, out.stderr
@@ -38,7 +201,7 @@ def test_eval_writes_json(tmp_path: Path) -> None:
 def test_eval_missing_policy_is_a_clear_error(tmp_path: Path) -> None:
     out = cap("eval", "--policy", str(tmp_path / "missing.npz"))
     assert out.returncode == 2
-    assert "not found" in out.stdout
+    assert "not found" in out.stderr
 
 
 @pytest.mark.slow
@@ -46,19 +209,29 @@ def test_train_tiny_budget(tmp_path: Path) -> None:
     pytest.importorskip("stable_baselines3")
     out = cap(
         "train", "--steps", "12000", "--out", str(tmp_path / "run"), "--quiet",
-        "--eval-episodes", "300", "--final-episodes", "300",
+        "--eval-episodes", "300", "--final-episodes", "300", "--env.friction", "0", "0.1",
+        "--json", str(tmp_path / "t.json"),
     )  # fmt: skip
     assert out.returncode == 0, out.stderr
     for name in ("policy.npz", "policy.json", "training_log.csv", "learning_curve.png"):
         assert (tmp_path / "run" / name).is_file()
     assert (tmp_path / "run" / "learning_curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    result = json.loads((tmp_path / "t.json").read_text())
+    assert result["config"]["env"]["friction"] == [0.0, 0.1]
 
 
 def test_train_unknown_preset() -> None:
     pytest.importorskip("stable_baselines3")
     out = cap("train", "--preset", "nope", "--quiet")
     assert out.returncode == 2
-    assert "fast, paper" in out.stdout
+    assert "'fast', 'paper'" in out.stderr
+
+
+def test_train_invalid_environment_range_names_the_field() -> None:
+    pytest.importorskip("stable_baselines3")
+    out = cap("train", "--env.friction", "0.3", "0.1", "--quiet")
+    assert out.returncode == 2
+    assert "friction" in out.stderr
 
 
 def test_run_writes_json_plot_and_video(tmp_path: Path) -> None:
@@ -74,25 +247,33 @@ def test_run_writes_json_plot_and_video(tmp_path: Path) -> None:
     assert (tmp_path / "r.gif").read_bytes()[:6] in (b"GIF89a", b"GIF87a")
 
 
-def test_run_unknown_task_lists_valid_names() -> None:
-    out = cap("run", "fridge")
-    assert out.returncode == 2
-    assert "drawer-opening" in out.stdout
+def test_run_mp4_through_the_video_extra(tmp_path: Path) -> None:
+    pytest.importorskip("imageio_ffmpeg")
+    out = cap("run", "handle-rotating", "--video", str(tmp_path / "r.mp4"))
+    assert out.returncode in (0, 1), out.stderr  # the video is written either way
+    assert (tmp_path / "r.mp4").read_bytes()[4:8] == b"ftyp"
 
 
 def test_run_unknown_controller_lists_valid_names() -> None:
     out = cap("run", "drawer-opening", "--controller", "pid")
     assert out.returncode == 2
-    assert "projection" in out.stdout
+    assert "projection" in out.stderr
+
+
+def test_lfo_json_is_a_path(tmp_path: Path) -> None:
+    demo = Path(__file__).resolve().parents[1] / "examples" / "door_demo.json"
+    out = cap("lfo", str(demo), "--json", str(tmp_path / "s.json"))
+    assert out.returncode == 0, out.stderr
+    assert json.loads((tmp_path / "s.json").read_text())["skill"]["constraint_type"] == "revolute"
+    out = cap("lfo", str(demo), "--json", "-")
+    assert json.loads(out.stdout)["skill"]["constraint_type"] == "revolute"
 
 
 def test_view_without_display_is_a_clear_error() -> None:
-    import os
-
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     out = subprocess.run(
         [sys.executable, "-m", "constraint_aware.cli", "view", "door-opening"],
         capture_output=True, text=True, env=env, timeout=120,
     )  # fmt: skip
     assert out.returncode == 2
-    assert "display" in out.stdout
+    assert "display" in out.stderr

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,12 +20,17 @@ from constraint_aware.control.controllers import (
     ProjectionController,
 )
 from constraint_aware.control.executor import Executor, ExecutorConfig
+from constraint_aware.control.record import RunRecord
 from constraint_aware.control.torque_policy import TorquePolicy
+from constraint_aware.deadband import MIN_THRESHOLD
 from constraint_aware.errors import InvalidInputError
 from constraint_aware.geometry import angle_deg, rotate_about
 from constraint_aware.spatial import Pose, Wrench
 
 U = np.array([1.0, 0.0, 0.0])
+# the executor holds for offset_samples periods to sample F_d; the last sample is also the
+# first step's reading, so the first move is the command after HOLD hold commands
+HOLD = ExecutorConfig().offset_samples - 1
 WEIGHT = np.array([0.0, 0.0, -6.0])  # the hand's own weight in the raw reading
 
 
@@ -32,7 +39,9 @@ class FakeGuide:
     """Hand rigidly holding a body on a frictionless guide along U, arm stiffness k.
 
     Quasi-static: after a command the body slides to the target's projection on the guide and
-    the object's force on the hand is k (body - target). Also its own TaskMonitor.
+    the object's force on the hand is k (body - target). Also its own TaskMonitor. Each reading
+    is a fresh sample, as from any real sensor: its last bits differ (1e-9 N dither), so the
+    executor's stale-reading guard (identical samples) does not fire on this noise-free fake.
     """
 
     k: float = 2000.0
@@ -44,13 +53,16 @@ class FakeGuide:
     target: Pose = field(default_factory=lambda: Pose(np.zeros(3), Rotation.identity()))
     commands: list[Pose] = field(default_factory=list)
     steps: int = 0
+    reads: int = 0
 
     control_period = 0.1
 
     def read_wrench(self) -> Wrench:
         if self.nan_after is not None and self.steps > self.nan_after:
             return Wrench(np.full(3, np.nan), np.zeros(3))
-        force = self.k * (self.position - self.target.position) + WEIGHT
+        self.reads += 1
+        dither = 1e-9 * math.sin(self.reads)
+        force = self.k * (self.position - self.target.position) + WEIGHT + dither
         return Wrench(force, self.torque.copy())
 
     def read_pose(self) -> Pose:
@@ -146,14 +158,16 @@ def test_force_limit_stops_the_run() -> None:
 
 
 def test_nan_sensor_stops_without_raising() -> None:
-    robot = FakeGuide(nan_after=3)
+    robot = FakeGuide(nan_after=HOLD + 3)
     rec = Executor(robot, PolicyController(), ExecutorConfig(), monitor=robot).run(d0(10))
     assert rec.outcome == "nan"
-    assert len(rec.steps) == 4
+    assert len(rec.steps) == 5  # four good steps, then the non-finite reading that ended it
+    assert not math.isfinite(rec.steps[-1].force_norm)
+    assert rec.peak_force < 60.0  # summaries skip the non-finite reading
 
 
 def test_lost_contact_stops_after_the_configured_steps() -> None:
-    robot = FakeGuide(lose_contact_after=2)
+    robot = FakeGuide(lose_contact_after=HOLD + 2)
     cfg = ExecutorConfig(lost_contact_steps=4)
     rec = Executor(robot, FixedDirection(), cfg, monitor=robot).run(U)
     assert rec.outcome == "contact_lost"
@@ -169,7 +183,7 @@ def test_commands_stay_in_the_workplane() -> None:
     Executor(robot, Upward(), ExecutorConfig(max_steps=4)).run(U)
     for pose in robot.commands:
         assert abs(pose.position[2]) < 1e-12
-    step = robot.commands[1].position - robot.commands[0].position
+    step = robot.commands[HOLD + 1].position - robot.commands[HOLD].position
     assert np.linalg.norm(step) == pytest.approx(0.01)
 
 
@@ -181,7 +195,7 @@ def test_revolute_hand_turns_with_the_direction() -> None:
     robot = FakeGuide()
     cfg = ExecutorConfig(constraint_type="revolute", max_steps=3)
     Executor(robot, TurnTen(), cfg).run(U)
-    rotvec = robot.commands[0].orientation.as_rotvec()
+    rotvec = robot.commands[HOLD].orientation.as_rotvec()
     np.testing.assert_allclose(rotvec, [0.0, 0.0, math.radians(10)], atol=1e-12)
     total = robot.commands[-1].orientation.as_rotvec()
     np.testing.assert_allclose(total, [0.0, 0.0, math.radians(30)], atol=1e-12)
@@ -196,7 +210,7 @@ def test_torque_policy_rotates_by_v_over_r_then_adapts() -> None:
     w0 = 0.01 / 0.1
     # the torque is offset-corrected: a constant torque is part of tau_d, so w stays v/r
     assert [s.rotation_rate for s in rec.steps[:3]] == pytest.approx([w0, w0, w0])
-    angle = robot.commands[0].orientation.magnitude()
+    angle = robot.commands[HOLD].orientation.magnitude()
     assert angle == pytest.approx(w0)
 
 
@@ -229,3 +243,209 @@ def test_executor_module_never_imports_mujoco() -> None:
 
 def test_angle_helper_matches_ground_truth() -> None:
     assert angle_deg(U, d0(25.0)) == pytest.approx(25.0)
+
+
+# --- step API, exceptions, records ----------------------------------------------------------
+def test_step_api_gives_the_same_run_as_run() -> None:
+    a = FakeGuide()
+    rec_a = Executor(a, ProjectionController(), ExecutorConfig(), monitor=a).run(d0(30))
+    b = FakeGuide()
+    ex = Executor(b, ProjectionController(), ExecutorConfig(), monitor=b)
+    ex.start(d0(30))
+    while True:
+        out = ex.step(b.read_wrench(), b.read_pose())
+        if not isinstance(out, Pose):
+            break
+        b.command_pose(out)
+        b.advance()
+    assert out.to_dict() == rec_a.to_dict()
+    assert [c.position.tolist() for c in b.commands] == [c.position.tolist() for c in a.commands]
+
+
+@dataclass
+class Holding(FakeGuide):
+    """FakeGuide with the optional hold(), and a comms failure after some commands."""
+
+    holds: int = 0
+    fail_after: int | None = None
+    interrupt_after: int | None = None
+
+    def hold(self) -> None:
+        self.holds += 1
+
+    def command_pose(self, pose: Pose) -> None:
+        if self.fail_after is not None and len(self.commands) >= self.fail_after:
+            raise ConnectionError("robot comms lost")
+        super().command_pose(pose)
+
+    def advance(self) -> None:
+        if self.interrupt_after is not None and self.steps >= self.interrupt_after:
+            raise KeyboardInterrupt
+        super().advance()
+
+
+def test_comms_exception_keeps_the_record_and_holds() -> None:
+    robot = Holding(fail_after=HOLD + 5)
+    with pytest.raises(ConnectionError) as info:
+        Executor(robot, FixedDirection(), ExecutorConfig(), monitor=robot).run(d0(10))
+    rec = info.value.run_record  # type: ignore[attr-defined]
+    assert rec.outcome == "error" and "comms lost" in rec.reason
+    assert len(rec.steps) == 6 and robot.holds == 1
+    json.dumps(rec.to_dict(), allow_nan=False)
+
+
+def test_keyboard_interrupt_keeps_the_record_and_holds() -> None:
+    robot = Holding(interrupt_after=HOLD + 3)
+    with pytest.raises(KeyboardInterrupt) as info:
+        Executor(robot, FixedDirection(), ExecutorConfig(), monitor=robot).run(U)
+    rec = info.value.run_record  # type: ignore[attr-defined]
+    assert rec.outcome == "error" and rec.reason.startswith("KeyboardInterrupt")
+    assert robot.holds == 1
+
+
+def test_every_stop_calls_hold() -> None:
+    robot = Holding()
+    rec = Executor(robot, ProjectionController(), ExecutorConfig(), monitor=robot).run(d0(30))
+    assert rec.success and robot.holds == 1
+
+
+class Minimal:
+    """A robot with only the required members (no grasp_contact, hold, stiffness)."""
+
+    control_period = 0.1
+
+    def __init__(self) -> None:
+        self.guide = FakeGuide()
+
+    def read_wrench(self) -> Wrench:
+        return self.guide.read_wrench()
+
+    def read_pose(self) -> Pose:
+        return self.guide.read_pose()
+
+    def commanded_pose(self) -> Pose:
+        return self.guide.commanded_pose()
+
+    def command_pose(self, pose: Pose) -> None:
+        self.guide.command_pose(pose)
+
+    def advance(self) -> None:
+        self.guide.advance()
+
+
+def test_goal_travel_stops_a_robot_without_monitor_or_optional_members() -> None:
+    robot = Minimal()
+    # without contact sensing the executor judges contact from |F|, which on this frictionless
+    # fake is 0 once aligned: switch that judgement off
+    cfg = ExecutorConfig(goal_travel=0.1, lost_contact_force=0.0)
+    rec = Executor(robot, ProjectionController(), cfg).run(d0(30))  # type: ignore[arg-type]
+    assert rec.outcome == "success" and rec.reason.startswith("goal: travel")
+    assert rec.goal is not None and rec.goal["reached"] >= 0.1
+    assert math.isnan(rec.progress)  # no monitor: no ground truth in the record
+    json.dumps(rec.to_dict(), allow_nan=False)
+
+
+def test_success_on_the_last_allowed_move_is_success() -> None:
+    robot = FakeGuide()
+    cfg = ExecutorConfig(goal_travel=0.05, max_steps=5)
+    rec = Executor(robot, FixedDirection(), cfg).run(U)
+    assert rec.outcome == "success" and rec.n_steps == 5
+    rec = Executor(
+        FakeGuide(), FixedDirection(), ExecutorConfig(goal_travel=0.06, max_steps=5)
+    ).run(U)
+    assert rec.outcome == "timeout" and rec.n_steps == 5
+
+
+def test_force_limit_comes_before_success() -> None:
+    robot = FakeGuide(k=20000.0, goal=0.001)  # the first move both succeeds and passes 60 N
+    rec = Executor(robot, FixedDirection(), ExecutorConfig(), monitor=robot).run(d0(40))
+    assert rec.outcome == "force_limit" and not rec.success
+
+
+@dataclass
+class Stiff(FakeGuide):
+    """FakeGuide that reports its stiffness (the optional Robot member)."""
+
+    @property
+    def translational_stiffness(self) -> float:
+        return self.k
+
+
+def test_predicted_force_stops_before_the_limit() -> None:
+    robot = Stiff(k=20000.0)
+    rec = Executor(robot, FixedDirection(), ExecutorConfig(), monitor=robot).run(d0(40))
+    assert rec.outcome == "force_limit" and "refused" in rec.reason
+    assert rec.peak_force <= 60.0 * 1.1
+
+
+def test_derived_threshold_is_recorded() -> None:
+    robot = FakeGuide()
+    rec = Executor(robot, FixedDirection(), ExecutorConfig(threshold=None, max_steps=2)).run(U)
+    assert rec.threshold == pytest.approx(MIN_THRESHOLD)  # a noise-free fake: the floor
+    rec = Executor(FakeGuide(), FixedDirection(), ExecutorConfig(max_steps=2)).run(U)
+    assert rec.threshold == 3.0
+
+
+def test_record_is_strict_json_and_round_trips(tmp_path: Path) -> None:
+    robot = FakeGuide(nan_after=HOLD + 2)
+    rec = Executor(robot, FixedDirection(), ExecutorConfig()).run(U)
+    path = rec.save(tmp_path / "r.json")
+    text = path.read_text()
+    assert "NaN" not in text and "null" in text
+    back = RunRecord.load(path)
+    assert back.outcome == "nan" and math.isnan(back.steps[-1].force_norm)
+    assert back.to_dict() == rec.to_dict()
+
+
+def test_revolute_normal_is_oriented_from_the_hinge_point() -> None:
+    class TurnTen(FixedDirection):
+        def next_direction(self, inp: ControlInput) -> np.ndarray:
+            return rotate_about(inp.direction, np.array([0.0, 0.0, 1.0]), math.radians(10))
+
+    # hand at the origin, hinge at -y: moving along +x turns negatively about +z, so the
+    # given normal +z is flipped to -z and the torque policy turns the hand the right way
+    robot = FakeGuide()
+    cfg = ExecutorConfig(
+        constraint_type="revolute",
+        max_steps=2,
+        torque_policy=True,
+        rotation_radius=0.5,
+        hinge_point=(0.0, -0.5, 0.0),
+    )
+    rec = Executor(robot, TurnTen(), cfg).run(U)
+    assert any("flipped" in n for n in rec.notes)
+    assert robot.commands[HOLD].orientation.as_rotvec()[2] < 0
+
+
+@dataclass
+class Flipped(FakeGuide):
+    """FakeGuide whose driver reports the wrench with the opposite sign."""
+
+    def read_wrench(self) -> Wrench:
+        w = super().read_wrench()
+        return Wrench(-w.force, -w.torque)
+
+
+def test_self_check_names_a_flipped_sign() -> None:
+    rec = Executor(Flipped(), FixedDirection(), ExecutorConfig()).run(d0(30))
+    assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
+    rec = Executor(FakeGuide(), FixedDirection(), ExecutorConfig(max_steps=10)).run(d0(30))
+    assert rec.outcome == "timeout"
+    assert any(n.startswith("self-check passed") for n in rec.notes)
+
+
+def test_wrench_from_sensor_frame_sign_lever_and_weight() -> None:
+    rot = Rotation.from_rotvec([0.0, 0.0, math.pi / 2])  # sensor x = world y
+    w = Wrench.from_sensor(
+        [1.0, 0.0, 0.0], [0.0, 0.0, 0.0], rot, [0.0, 0.0, 0.1], [0.0, 0.0, 0.0], sign=-1.0
+    )
+    np.testing.assert_allclose(w.force, [0.0, -1.0, 0.0], atol=1e-12)
+    # the force acts at the sensor, 10 cm above the tool point: r x F = (0,0,0.1) x (0,-1,0)
+    np.testing.assert_allclose(w.torque, [0.1, 0.0, 0.0], atol=1e-12)
+    # a 1 kg hand hanging at rest reads its weight; compensation removes it
+    w = Wrench.from_sensor(
+        [0.0, 0.0, -9.81], [0.0, 0.0, 0.0], np.eye(3), np.zeros(3), np.zeros(3), hand_mass=1.0
+    )
+    np.testing.assert_allclose(w.force, 0.0, atol=1e-12)
+    with pytest.raises(InvalidInputError, match="sign"):
+        Wrench.from_sensor(np.zeros(3), np.zeros(3), np.eye(3), np.zeros(3), np.zeros(3), sign=2)

@@ -268,7 +268,7 @@ def test_missing_file_names_it(tmp_path: Path) -> None:
 def test_cap_lfo_execute_examples(name: str) -> None:
     out = subprocess.run(
         [sys.executable, "-m", "constraint_aware.cli", "lfo", str(ROOT / "examples" / name),
-         "--execute", "--json"],
+         "--execute", "--json", "-"],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert out.returncode == 0, out.stdout + out.stderr
@@ -285,4 +285,4 @@ def test_cap_lfo_bad_file_is_a_clear_error(tmp_path: Path) -> None:
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert out.returncode == 2
-    assert "malformed JSON" in out.stdout
+    assert "malformed JSON" in out.stderr

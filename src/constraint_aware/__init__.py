@@ -1,16 +1,22 @@
-"""constraint-aware: the constraint-aware policy for compliant manipulation (Saito et al.)."""
+"""constraint-aware: the constraint-aware policy for compliant manipulation (Saito et al.).
 
-import os as _os
+Importing the package has no side effects beyond registering its Gymnasium environments by
+name (string entry points: nothing heavy is imported); no environment variable, no matplotlib
+backend, no GL choice (see `constraint_aware.sim.render` for when the GL backend is chosen).
+"""
 
-# Offscreen rendering must choose its GL backend before MuJoCo is first imported; without a
-# display, EGL is the one that works on a headless machine with no extra package.
-if "MUJOCO_GL" not in _os.environ and not _os.environ.get("DISPLAY"):
-    _os.environ["MUJOCO_GL"] = "egl"
+from importlib.metadata import PackageNotFoundError, version
 
+from constraint_aware.envs import register_envs as _register_envs
 from constraint_aware.errors import CapError, InvalidInputError, PolicyFileError, UnknownNameError
 from constraint_aware.policy import ConstraintAwarePolicy
 
-__version__ = "0.1.0"
+try:  # one version source: the installed distribution's metadata (pyproject.toml)
+    __version__ = version("constraint-aware")
+except PackageNotFoundError:  # a source tree on sys.path without an installed distribution
+    __version__ = "0+unknown"
+
+_register_envs()  # string entry points only: nothing heavy is imported here
 
 __all__ = [
     "CapError",

@@ -1,9 +1,22 @@
-"""`cap`: command-line entry point. Thin: parse, call the library, print."""
+"""`cap`: command-line entry point. Thin: parse, call the library, print.
+
+Conventions (every subcommand):
+- exit codes: 0 success, 1 the task failed (a run or an executed skill did not succeed, or the
+  run raised), 2 usage or input error (argparse, `CapError`, an unwritable output), 130 Ctrl-C;
+- results on stdout, errors on stderr, user text never interpreted as rich markup;
+- `--json PATH` writes strict JSON (NaN and infinities become null); `-` means stdout, and the
+  human-readable lines then go to stderr;
+- output paths are checked (suffix, writer available) before anything is simulated;
+- flags for configuration dataclasses are generated from their fields (cli_flags.py).
+"""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import math
+import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -11,36 +24,187 @@ from typing import Any
 
 from rich.console import Console
 from rich.table import Table
+from rich.text import Text
 
-from constraint_aware.errors import CapError
+from constraint_aware import __version__
+from constraint_aware.cli_flags import FlagSpec, add_dataclass_flags, collect
+from constraint_aware.errors import CapError, InvalidInputError
 
 console = Console()
+err_console = Console(stderr=True)
+
+EXIT_OK = 0
+EXIT_FAILED = 1  # the task failed
+EXIT_USAGE = 2  # usage or input error
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, the shell's convention
+
+EPILOG = (
+    "exit codes: 0 success; 1 the task failed (a run or an executed skill did not succeed); "
+    "2 usage or input error; 130 interrupted (Ctrl-C). "
+    "--json PATH writes strict JSON ('-' = stdout)."
+)
+JSON_SUFFIXES = (".json",)
 
 
-# --- cap train ------------------------------------------------------------------------------
-def cmd_train(args: argparse.Namespace) -> int:
+class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Defaults shown for hand-written flags (generated flags carry their own)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if "default" in text or action.default in (None, False, argparse.SUPPRESS):
+            return text
+        return super()._get_help_string(action)
+
+
+# --- output helpers ---------------------------------------------------------------------------
+def print_error(message: str) -> None:
+    """`error: ...` on stderr; the message is plain text (brackets stay brackets)."""
+    err_console.print(Text.assemble(("error: ", "bold red"), message), soft_wrap=True)
+
+
+def human(args: argparse.Namespace) -> Console:
+    """Where human-readable lines go: stderr when the JSON result goes to stdout."""
+    return err_console if getattr(args, "json", None) == "-" else console
+
+
+def strict(value: Any) -> Any:
+    """A JSON-ready copy: NaN/inf -> None, tuples and numpy values -> lists and numbers."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): strict(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [strict(v) for v in value]
+    if hasattr(value, "tolist"):  # numpy arrays and scalars
+        return strict(value.tolist())
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def write_json(data: Any, path: str) -> None:
+    """Strict JSON to `path` ('-': stdout). Write failures become a CapError (exit 2)."""
+    text = json.dumps(strict(data), indent=1, allow_nan=False) + "\n"
+    if path == "-":
+        sys.stdout.write(text)
+        sys.stdout.flush()
+        return
+    out = Path(path)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+    except OSError as exc:
+        raise CapError(f"cannot write {path}: {exc.strerror or exc}") from exc
+
+
+def check_output(
+    path: str | None, flag: str, suffixes: Sequence[str], stdout: bool = False
+) -> None:
+    """Fail before any work if `path` has a suffix no writer handles or cannot be a file."""
+    if path is None or (stdout and path == "-"):
+        return
+    out = Path(path)
+    if out.suffix.lower() not in suffixes:
+        raise InvalidInputError(
+            f"{flag} {path!r}: suffix {out.suffix or '(none)'!r}; valid: {', '.join(suffixes)}"
+            + (" or - for stdout" if stdout else "")
+        )
+    if out.is_dir():
+        raise InvalidInputError(f"{flag} {path!r} is a directory")
+    parent = next((p for p in out.absolute().parents if p.exists()), None)
+    if parent is not None and not parent.is_dir():
+        raise InvalidInputError(f"{flag} {path!r}: {parent} is not a directory")
+
+
+def plot_suffixes() -> tuple[str, ...]:
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return tuple(sorted("." + k for k in FigureCanvasBase.get_supported_filetypes()))
+
+
+def _add_json(p: argparse.ArgumentParser | argparse._ArgumentGroup, what: str) -> None:
+    p.add_argument("--json", metavar="PATH", help=f"write {what} as JSON here ('-' = stdout)")
+
+
+def _add_policy(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--policy",
+        metavar="NAME|FILE",
+        help="a shipped policy's name or a policy .npz (default: the shipped default policy)",
+    )
+
+
+# --- cap train --------------------------------------------------------------------------------
+_TRAIN_ALIASES = {
+    "total_timesteps": ("--steps",),
+    "target_angle_deg": ("--target-angle",),
+    "time_budget_s": ("--time-budget",),
+}
+
+
+def _train_parser(p: argparse.ArgumentParser) -> None:
     try:
         from constraint_aware.training import ppo
-    except ImportError as exc:  # torch / SB3 are an extra
-        raise CapError(
-            f"training needs the 'train' extra: pip install -e '.[train]' ({exc})"
-        ) from exc
+    except ImportError as exc:  # torch / SB3 are an extra: say so for any arguments
+        message = f"training needs the 'train' extra: pip install 'constraint-aware[train]' ({exc})"
+
+        def missing(_args: argparse.Namespace) -> int:
+            raise CapError(message)
+
+        p.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
+        p.set_defaults(func=missing)
+        return
+    from constraint_aware.training.config import EnvConfig
+
+    presets = ppo.PRESETS
+    train = p.add_argument_group("training (TrainConfig; defaults per --preset)")
+    train.add_argument("--preset", default="fast", choices=sorted(presets), help="base config")
+
+    def per_preset(name: str) -> str:
+        values = {k: getattr(v, name) for k, v in presets.items()}
+        if len({repr(v) for v in values.values()}) == 1:
+            return _shown(next(iter(values.values())))
+        return ", ".join(f"{k}: {_shown(v)}" for k, v in values.items())
+
+    train_fields = [f.name for f in dataclasses.fields(ppo.TrainConfig) if f.name != "env"]
+    specs = add_dataclass_flags(
+        train,
+        ppo.TrainConfig,
+        skip=("preset", "env"),
+        defaults={name: per_preset(name) for name in train_fields},
+        aliases=_TRAIN_ALIASES,
+    )
+    env = p.add_argument_group("training environment (EnvConfig)")
+    env_specs = add_dataclass_flags(env, EnvConfig, prefix="env.")
+    run = p.add_argument_group("outputs")
+    run.add_argument("--out", help="output directory (default runs/train-PRESET-seedN)")
+    run.add_argument("--final-episodes", type=int, default=10_000, help="episodes for the card")
+    run.add_argument("--ship", action="store_true", help="also overwrite the packaged policy")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_json(run, "the final metrics")
+    p.set_defaults(func=cmd_train, train_specs=specs, env_specs=env_specs)
+
+
+def _shown(value: Any) -> str:
+    return " ".join(map(str, value)) if isinstance(value, tuple) else str(value)
+
+
+def cmd_train(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from constraint_aware.policy import shipped_policy_path
+    from constraint_aware.training import ppo
     from constraint_aware.training.curve import plot_learning_curve
 
-    overrides: dict[str, Any] = {"seed": args.seed}
-    if args.steps is not None:
-        overrides["total_timesteps"] = args.steps
-    if args.target_angle is not None:
-        overrides["target_angle_deg"] = args.target_angle
-    if args.time_budget is not None:
-        overrides["time_budget_s"] = args.time_budget
-    if args.eval_episodes is not None:
-        overrides["eval_episodes"] = args.eval_episodes
-    config = ppo.make_config(args.preset, **overrides)
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    train_specs: list[FlagSpec] = args.train_specs
+    env_specs: list[FlagSpec] = args.env_specs
+    config = ppo.make_config(args.preset, **collect(args, train_specs))
+    env_overrides = collect(args, env_specs)
+    if env_overrides:
+        config = dataclasses.replace(config, env=dataclasses.replace(config.env, **env_overrides))
     out = Path(args.out or f"runs/train-{config.preset}-seed{config.seed}")
+    out_console = human(args)
 
     with Progress(
         TextColumn("[bold]training[/]"),
@@ -48,7 +212,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         TextColumn("{task.completed:,}/{task.total:,} steps"),
         TextColumn("{task.fields[status]}"),
         TimeElapsedColumn(),
-        console=console,
+        console=out_console,
         disable=args.quiet,
     ) as progress:
         task = progress.add_task("train", total=config.total_timesteps, status="")
@@ -67,38 +231,62 @@ def cmd_train(args: argparse.Namespace) -> int:
         target = shipped_policy_path()
         result.policy.save(target)
         (target.parent / "training_log.csv").write_text((out / "training_log.csv").read_text())
-        console.print(f"shipped policy written to {target}")
-    _print_metrics(metrics)
+        out_console.print(Text(f"shipped policy written to {target}"))
+    _print_metrics(metrics, out_console)
     reached = result.target_reached_s
-    console.print(
-        f"wall time {result.wall_time_s:.1f} s"
-        + (f"; target reached at {reached:.1f} s" if reached is not None else "")
-        + f"; policy, log and learning curve in {out}/"
+    out_console.print(
+        Text(
+            f"wall time {result.wall_time_s:.1f} s"
+            + (f"; target reached at {reached:.1f} s" if reached is not None else "")
+            + f"; policy, log and learning curve in {out}/"
+        )
     )
-    return 0
+    if args.json:
+        write_json(
+            {
+                "out": out,
+                "config": config.to_dict(),
+                "metrics": metrics,
+                "wall_time_s": result.wall_time_s,
+                "target_reached_s": reached,
+            },
+            args.json,
+        )
+    return EXIT_OK
 
 
-def _print_metrics(metrics: dict[str, dict[str, Any]]) -> None:
+def _print_metrics(metrics: dict[str, dict[str, Any]], out: Console) -> None:
     table = Table(title="final angle between d and u after 5 actions (standard evaluation)")
     for col in ("controller", "mean [deg]", "p95 [deg]", "mean return"):
         table.add_column(col, justify="right" if col != "controller" else "left")
     for name, m in metrics.items():
         table.add_row(
-            name,
+            Text(name),
             f"{m['mean_final_angle_deg']:.2f}",
             f"{m['p95_final_angle_deg']:.2f}",
             f"{m['mean_return']:.4f}",
         )
-    console.print(table)
+    out.print(table)
 
 
-# --- cap eval -------------------------------------------------------------------------------
+# --- cap eval ---------------------------------------------------------------------------------
+def _eval_parser(p: argparse.ArgumentParser) -> None:
+    _add_policy(p)
+    p.add_argument("--episodes", type=int, default=10_000, help="episodes per controller")
+    p.add_argument("--seed", type=int, default=12345, help="seeds the episodes")
+    _add_json(p, "the results")
+    p.set_defaults(func=cmd_eval)
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     from constraint_aware.policy import ConstraintAwarePolicy
     from constraint_aware.training.config import EnvConfig
     from constraint_aware.training.evaluate import evaluate
     from constraint_aware.training.reference import reference_controllers
 
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    if args.episodes < 1:
+        raise InvalidInputError(f"--episodes {args.episodes}: must be >= 1")
     policy = ConstraintAwarePolicy.load(args.policy)
     config = EnvConfig.from_dict(policy.card.get("env_config", {}))
     results = {
@@ -108,30 +296,61 @@ def cmd_eval(args: argparse.Namespace) -> int:
     results["policy"] = evaluate(
         lambda obs, _f: policy.act_batch(obs), config, episodes=args.episodes, seed=args.seed
     ).to_dict()
+    _print_metrics(results, human(args))
     if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=2) + "\n")
-    _print_metrics(results)
-    return 0
+        write_json(results, args.json)
+    return EXIT_OK
 
 
-# --- cap run / cap view ---------------------------------------------------------------------
+# --- cap run / cap view -----------------------------------------------------------------------
+def _task_names() -> list[str]:
+    from constraint_aware.sim.tasks import TASKS
+
+    return list(TASKS)
+
+
+def _run_parser(p: argparse.ArgumentParser) -> None:
+    from constraint_aware.control.controllers import CONTROLLERS
+    from constraint_aware.control.simulate import RunSpec
+
+    p.add_argument("task", choices=_task_names(), help="the simulated task")
+    specs = add_dataclass_flags(
+        p,
+        RunSpec,
+        skip=("task", "overrides", "controller_params"),
+        choices={"controller": CONTROLLERS},
+        aliases={"offset_deg": ("--offset",)},
+    )
+    _add_policy(p)
+    out = p.add_argument_group("outputs (checked before the run starts)")
+    out.add_argument(
+        "--json", metavar="PATH", help="the run record as JSON ('-' = stdout); written on failure"
+    )
+    out.add_argument("--plot", metavar="PATH", help="angle and force curves (.png, .pdf, .svg...)")
+    out.add_argument(
+        "--video",
+        metavar="PATH",
+        help="render the run offscreen: .gif (Pillow) or .mp4 (the 'video' extra)",
+    )
+    p.set_defaults(func=cmd_run, run_specs=specs)
+
+
+def _check_run_outputs(args: argparse.Namespace) -> None:
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    check_output(args.plot, "--plot", plot_suffixes())
+    if args.video:
+        from constraint_aware.sim.render import check_video_path
+
+        check_video_path(args.video)
+
+
 def cmd_run(args: argparse.Namespace) -> int:
-    from constraint_aware.control.plots import plot_run
     from constraint_aware.control.simulate import RunSpec, run
     from constraint_aware.policy import ConstraintAwarePolicy
-    from constraint_aware.sim.tasks import task_config
 
-    task_config(args.task)  # unknown names fail here, listing the valid ones
-    spec = RunSpec(
-        task=args.task,
-        controller=args.controller,
-        offset_deg=args.offset,
-        seed=args.seed,
-        randomize=args.randomize,
-        torque_policy=args.torque_policy,
-        sensor_noise=args.sensor_noise,
-    )
-    policy = ConstraintAwarePolicy.load(args.policy) if args.controller == "policy" else None
+    _check_run_outputs(args)
+    spec = RunSpec(task=args.task, **collect(args, args.run_specs))
+    policy = ConstraintAwarePolicy.load(args.policy) if spec.controller == "policy" else None
     frames: list[Any] = []
     on_step = None
     if args.video:
@@ -147,40 +366,68 @@ def cmd_run(args: argparse.Namespace) -> int:
                 )
             frames.append(renderer.frame(sim.data))
 
-    record, _sim = run(spec, policy=policy, on_step=on_step)
+    try:
+        record, _sim = run(spec, policy=policy, on_step=on_step)
+    except BaseException as exc:  # write what we have, then report (Ctrl-C: 130)
+        partial = getattr(exc, "run_record", None)
+        if partial is None:
+            raise
+        _write_run_outputs(args, partial, frames)
+        if not isinstance(exc, Exception):
+            raise
+        print_error(f"the run raised {type(exc).__name__}: {exc}")
+        return EXIT_FAILED
     summary = record.summary()
     _print_outcome(
-        f"{args.task} / {record.label['controller']} / offset {args.offset:+.1f} deg",
+        human(args),
+        f"{args.task} / {record.label['controller']} / offset {spec.offset_deg:+.1f} deg",
         record,
         f"final angle {summary['final_angle_deg']:.1f} deg, slip {summary['slip_m'] * 100:.1f} cm",
     )
+    _write_run_outputs(args, record, frames)
+    return EXIT_OK if record.success else EXIT_FAILED
+
+
+def _write_run_outputs(args: argparse.Namespace, record: Any, frames: list[Any]) -> None:
+    """The record (JSON), its plot and the video: each one the run produced enough for."""
     if args.json:
-        record.save(args.json)
-    if args.plot:
-        plot_run(record, args.plot)
-    if args.video:
-        from constraint_aware.sim.render import save_video
+        write_json(record.to_dict(), args.json)
+    try:
+        if args.plot and record.steps:
+            from constraint_aware.control.plots import plot_run
 
-        save_video(frames, args.video, fps=10)
-    return 0
+            plot_run(record, args.plot)
+        if args.video and frames:
+            from constraint_aware.sim.render import save_video
+
+            save_video(frames, args.video, fps=10)
+    except OSError as exc:
+        target = exc.filename or "an output"
+        raise CapError(f"cannot write {target}: {exc.strerror or exc}") from exc
 
 
-def _print_outcome(head: str, record: Any, tail: str) -> None:
+def _print_outcome(out: Console, head: str, record: Any, tail: str) -> None:
     """One line: outcome, progress toward the goal, steps, peak force, then `tail`."""
     s = record.summary()
     scale, unit = (57.29577951308232, "deg") if s["constraint_type"] == "revolute" else (100, "cm")
-    console.print(
-        f"{head}: [{'green' if record.success else 'red'}]{record.outcome}[/] "
-        f"{s['progress'] * scale:.1f}/{s['success_progress'] * scale:.0f} {unit} in "
-        f"{s['steps']} steps, peak |F| {s['peak_force_N']:.1f} N, {tail}"
-        + (f" ({record.reason})" if record.reason else ""),
+    out.print(
+        Text.assemble(
+            f"{head}: ",
+            (record.outcome, "green" if record.success else "red"),
+            f" {s['progress'] * scale:.1f}/{s['success_progress'] * scale:.0f} {unit} in "
+            f"{s['steps']} steps, peak |F| {s['peak_force_N']:.1f} N, {tail}"
+            + (f" ({record.reason})" if record.reason else ""),
+        ),
         soft_wrap=True,
     )
 
 
-def cmd_view(args: argparse.Namespace) -> int:
-    import os
+def _view_parser(p: argparse.ArgumentParser) -> None:
+    p.add_argument("task", choices=_task_names(), help="the simulated task")
+    p.set_defaults(func=cmd_view)
 
+
+def cmd_view(args: argparse.Namespace) -> int:
     from constraint_aware.sim.tasks import task_config
     from constraint_aware.sim.world import ManipulationSim
 
@@ -191,181 +438,207 @@ def cmd_view(args: argparse.Namespace) -> int:
     import mujoco.viewer
 
     mujoco.viewer.launch(sim.model, sim.data)
-    return 0
+    return EXIT_OK
 
 
-# --- cap lfo --------------------------------------------------------------------------------
+# --- cap lfo ----------------------------------------------------------------------------------
+def _lfo_parser(p: argparse.ArgumentParser) -> None:
+    from constraint_aware.control.controllers import CONTROLLERS
+    from constraint_aware.lfo.demo import GRASP_TYPES
+
+    p.add_argument("demo", help="demonstration .json (cap-demo/1) or a t,x,y,z .csv")
+    _add_json(p, "the skill (and the execution's summary)")
+    p.add_argument("--execute", action="store_true", help="run the skill on the simulated task")
+    p.add_argument("--grasp", choices=GRASP_TYPES, help="override the force-exertion type")
+    p.add_argument("--controller", default="policy", choices=CONTROLLERS, help="for --execute")
+    p.add_argument("--seed", type=int, default=0, help="for --execute")
+    p.add_argument("--record", metavar="PATH", help="the execution's run record (.json)")
+    p.set_defaults(func=cmd_lfo)
+
+
 def cmd_lfo(args: argparse.Namespace) -> int:
-    from constraint_aware.lfo.demo import GRASP_TYPES, load
+    from constraint_aware.lfo.demo import load
     from constraint_aware.lfo.infer import infer_skill
 
-    if args.grasp and args.grasp not in GRASP_TYPES:
-        raise CapError(f"grasp {args.grasp!r}; valid names: {', '.join(GRASP_TYPES)}")
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    check_output(args.record, "--record", JSON_SUFFIXES, stdout=True)
+    out_console = human(args)
     demo = load(args.demo)
     skill = infer_skill(demo, grasp_override=args.grasp)
     out: dict[str, Any] = {"demo": str(args.demo), "skill": skill.to_dict()}
-    if not args.json:
-        _print_skill(skill)
+    _print_skill(skill, out_console)
     if args.execute:
         from constraint_aware.lfo.execute import execute
 
-        record, info = execute(skill, controller=args.controller, seed=args.seed)
+        try:
+            record, info = execute(skill, controller=args.controller, seed=args.seed)
+        except BaseException as exc:  # write the attached record, as cap run does
+            partial = getattr(exc, "run_record", None)
+            if partial is None:
+                raise
+            if args.record:
+                write_json(partial.to_dict(), args.record)
+            if not isinstance(exc, Exception):
+                raise
+            print_error(f"the execution raised {type(exc).__name__}: {exc}")
+            return EXIT_FAILED
         out["execution"] = {**info, **record.summary()}
-        if not args.json:
-            _print_outcome(
-                f"executed on {info['task']} with the {record.label['controller']} controller",
-                record,
-                "initial-direction error vs the task "
-                f"{info['initial_direction_error_deg']:.1f} deg",
-            )
+        _print_outcome(
+            out_console,
+            f"executed on {info['task']} with the {record.label['controller']} controller",
+            record,
+            f"initial-direction error vs the task {info['initial_direction_error_deg']:.1f} deg",
+        )
         if args.record:
-            record.save(args.record)
+            write_json(record.to_dict(), args.record)
     if args.json:
-        print(json.dumps(out, indent=1))
+        write_json(out, args.json)
     if args.execute and not out["execution"]["success"]:
-        return 1
-    return 0
+        return EXIT_FAILED
+    return EXIT_OK
 
 
-def _print_skill(skill: Any) -> None:
+def _print_skill(skill: Any, out: Console) -> None:
     def vec(v: list[float] | None) -> str:
         return "-" if v is None else "(" + ", ".join(f"{x:+.3f}" for x in v) + ")"
 
     u = skill.uncertainty
     table = Table(title="skill parameters from the demonstration", show_header=False)
-    table.add_row("constraint", skill.constraint_type)
-    table.add_row(
-        "workplane normal",
-        vec(skill.workplane_normal)
-        + (f"  +- {u['normal_std_deg']:.1f} deg" if "normal_std_deg" in u else ""),
-    )
-    table.add_row("initial direction", vec(skill.initial_direction))
+    rows: list[tuple[str, str]] = [
+        ("constraint", skill.constraint_type),
+        (
+            "workplane normal",
+            vec(skill.workplane_normal)
+            + (f"  +- {u['normal_std_deg']:.1f} deg" if "normal_std_deg" in u else ""),
+        ),
+        ("initial direction", vec(skill.initial_direction)),
+    ]
     if skill.radius is not None:
-        table.add_row(
-            "radius",
-            f"{skill.radius:.3f} m  +- {u['radius_std_m']:.3f} m (arc {u['arc_deg']:.0f} deg)",
+        rows.append(
+            (
+                "radius",
+                f"{skill.radius:.3f} m  +- {u['radius_std_m']:.3f} m (arc {u['arc_deg']:.0f} deg)",
+            )
         )
-        table.add_row("centre", vec(skill.centre))
-    table.add_row(
-        "grasp",
-        f"{skill.grasp}"
-        + (" (fixed orientation: torque policy)" if skill.fixed_orientation else ""),
+        rows.append(("centre", vec(skill.centre)))
+    rows.append(
+        (
+            "grasp",
+            f"{skill.grasp}"
+            + (" (fixed orientation: torque policy)" if skill.fixed_orientation else ""),
+        )
     )
     geo = skill.evidence["geometry"]
-    table.add_row(
-        "geometry",
-        f"{geo['verdict']}: line RMS {geo['line_rms_m'] * 1000:.1f} mm"
-        + (f", circle RMS {geo['circle_rms_m'] * 1000:.1f} mm" if "circle_rms_m" in geo else ""),
+    rows.append(
+        (
+            "geometry",
+            f"{geo['verdict']}: line RMS {geo['line_rms_m'] * 1000:.1f} mm"
+            + (
+                f", circle RMS {geo['circle_rms_m'] * 1000:.1f} mm" if "circle_rms_m" in geo else ""
+            ),
+        )
     )
     words = skill.evidence["words"]
-    table.add_row("words", f"{words['constraint']}: {words['reason']}")
-    console.print(table)
+    rows.append(("words", f"{words['constraint']}: {words['reason']}"))
+    for key, value in rows:
+        table.add_row(Text(key), Text(value))  # demo text is data, never markup
+    out.print(table)
     for w in skill.warnings:
-        console.print(f"[yellow]note:[/] {w}", soft_wrap=True)
+        out.print(Text.assemble(("note: ", "yellow"), w), soft_wrap=True)
 
 
-# --- cap bench ------------------------------------------------------------------------------
+# --- cap bench --------------------------------------------------------------------------------
+def _bench_parser(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quick", action="store_true", help="the paper's experiments, few seeds")
+    p.add_argument("--out", default="bench-out", help="output directory")
+    p.add_argument("--workers", type=int, help="processes (default: the usable cores)")
+    p.add_argument("--replot", metavar="DIR", help="redraw figures and report from DIR only")
+    _add_json(p, "results.json's content")
+    p.set_defaults(func=cmd_bench)
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     import time
 
-    from constraint_aware.bench.run import replot, run_bench
+    from constraint_aware.bench.run import RESULTS, replot, run_bench
 
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    if args.workers is not None and args.workers < 1:
+        raise InvalidInputError(f"--workers {args.workers}: must be >= 1")
     start = time.perf_counter()
     if args.replot:
         report = replot(args.replot)
     else:
         report = run_bench(args.out, quick=args.quick, workers=args.workers)
-    console.print(
-        f"report: {report} (results.json and figures beside it); "
-        f"{time.perf_counter() - start:.0f} s",
+    human(args).print(
+        Text(
+            f"report: {report} (results.json and figures beside it); "
+            f"{time.perf_counter() - start:.0f} s"
+        ),
         soft_wrap=True,
     )
-    return 0
+    if args.json:
+        write_json(json.loads((Path(report).parent / RESULTS).read_text()), args.json)
+    return EXIT_OK
 
 
-# --- parser ---------------------------------------------------------------------------------
-def build_parser() -> argparse.ArgumentParser:
+# --- parser -----------------------------------------------------------------------------------
+COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
+    "bench": ("reproduce the paper's experiments as a report", _bench_parser),
+    "run": ("run a controller on a simulated task", _run_parser),
+    "lfo": ("skill parameters from a demonstration (and run them)", _lfo_parser),
+    "train": ("train the policy with PPO (needs the 'train' extra)", _train_parser),
+    "eval": ("evaluate a policy beside the reference controllers", _eval_parser),
+    "view": ("open MuJoCo's interactive viewer on a task", _view_parser),
+}
+
+
+def _selected_command(argv: Sequence[str]) -> str | None:
+    """The subcommand named on the command line (top-level options take no values)."""
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
+    """The `cap` parser; only the subcommand named in `argv` gets its (possibly heavy) flags.
+
+    Generating a subcommand's flags imports its configuration classes (training: torch), so
+    `cap --help` and the other subcommands stay fast.
+    """
+    selected = _selected_command(argv)
     parser = argparse.ArgumentParser(
-        prog="cap", description="Constraint-aware policy for compliant manipulation"
+        prog="cap",
+        description="Constraint-aware policy for compliant manipulation (Saito et al.)",
+        epilog=EPILOG,
+        formatter_class=_Formatter,
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    p = sub.add_parser("train", help="train the policy with PPO (needs the 'train' extra)")
-    p.add_argument("--preset", default="fast", help="fast (default) or paper")
-    p.add_argument("--out", help="output directory (default runs/train-PRESET-seedN)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--steps", type=int, help="total env steps (overrides the preset)")
-    p.add_argument("--target-angle", type=float, help="stop once eval mean angle <= this [deg]")
-    p.add_argument("--time-budget", type=float, help="stop after this many seconds")
-    p.add_argument("--eval-episodes", type=int, help="episodes per periodic evaluation")
-    p.add_argument("--final-episodes", type=int, default=10_000, help="episodes for the card")
-    p.add_argument("--ship", action="store_true", help="also overwrite the packaged policy")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=cmd_train)
-
-    p = sub.add_parser("eval", help="evaluate a policy beside the reference controllers")
-    p.add_argument("--policy", help="policy .npz (default: the shipped policy)")
-    p.add_argument("--episodes", type=int, default=10_000)
-    p.add_argument("--seed", type=int, default=12345)
-    p.add_argument("--json", help="write the results to this JSON file")
-    p.set_defaults(func=cmd_eval)
-
-    p = sub.add_parser("run", help="run a controller on a simulated task")
-    p.add_argument(
-        "task", help="drawer-opening, plate-sliding, pole-pulling, door-opening, handle-rotating"
-    )
-    p.add_argument("--controller", default="policy", help="policy, fixed, projection, classical")
-    p.add_argument("--offset", type=float, default=30.0, help="initial direction error [deg]")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--randomize", action="store_true", help="draw friction, mass, damping")
-    p.add_argument("--sensor-noise", type=float, default=0.1, help="[N] std per axis")
-    tp = p.add_mutually_exclusive_group()
-    tp.add_argument(
-        "--torque-policy",
-        dest="torque_policy",
-        action="store_true",
-        default=None,
-        help="force the appendix's torque policy on (default: fixed-orientation grasps only)",
-    )
-    tp.add_argument("--no-torque-policy", dest="torque_policy", action="store_false")
-    p.add_argument("--policy", help="policy .npz (default: the shipped policy)")
-    p.add_argument("--json", help="save the run record here")
-    p.add_argument("--plot", help="save angle and force curves here (.png)")
-    p.add_argument("--video", help="render the run offscreen (.gif, or .mp4 with ffmpeg)")
-    p.set_defaults(func=cmd_run)
-
-    p = sub.add_parser("bench", help="reproduce the paper's experiments as a report")
-    p.add_argument("--quick", action="store_true", help="the paper's experiments, few seeds")
-    p.add_argument("--out", default="bench-out", help="output directory (default bench-out)")
-    p.add_argument("--workers", type=int, help="processes (default: every core)")
-    p.add_argument("--replot", metavar="DIR", help="redraw figures and report from DIR only")
-    p.set_defaults(func=cmd_bench)
-
-    p = sub.add_parser("lfo", help="skill parameters from a demonstration (and run them)")
-    p.add_argument("demo", help="demonstration .json (cap-demo/1) or a t,x,y,z .csv")
-    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
-    p.add_argument("--execute", action="store_true", help="run the skill on the simulated task")
-    p.add_argument("--grasp", help="override the force-exertion type")
-    p.add_argument("--controller", default="policy", help="policy, classical, projection, fixed")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--record", help="save the execution's run record here (.json)")
-    p.set_defaults(func=cmd_lfo)
-
-    p = sub.add_parser("view", help="open MuJoCo's interactive viewer on a task")
-    p.add_argument("task")
-    p.set_defaults(func=cmd_view)
+    for name, (help_text, build) in COMMANDS.items():
+        p = sub.add_parser(
+            name, help=help_text, description=help_text, epilog=EPILOG, formatter_class=_Formatter
+        )
+        if name == selected:
+            build(p)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    func: Callable[[argparse.Namespace], int] = args.func
+    args_list = list(sys.argv[1:] if argv is None else argv)
     try:
+        parser = build_parser(args_list)
+        args = parser.parse_args(args_list)
+        func: Callable[[argparse.Namespace], int] = args.func
         return func(args)
     except CapError as exc:
-        console.print(f"[red]error:[/] {exc}")
-        return 2
+        print_error(str(exc))
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print_error("interrupted")
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `cap ... --json - | head`: the reader left; no traceback
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_FAILED
 
 
 if __name__ == "__main__":

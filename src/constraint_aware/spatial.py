@@ -5,9 +5,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
-from constraint_aware.geometry import FloatArray
+from constraint_aware.errors import InvalidInputError
+from constraint_aware.geometry import FloatArray, as_vector
+
+#: [m/s^2] standard gravity, world frame with z up
+GRAVITY = (0.0, 0.0, -9.81)
 
 
 @dataclass(frozen=True)
@@ -15,11 +20,61 @@ class Wrench:
     """force: (3,) [N], torque: (3,) [N m] about the tool point; world frame.
 
     Sign: the action of everything outside the hand on the hand as the wrist sensor sees it
-    (the object's force, plus the hand's weight), i.e. the raw F_s of paper 3.4.2.
+    (the object's force, plus the hand's weight), i.e. the raw F_s of paper 3.4.2. Pulling a
+    drawer open, the drawer resists: F points against the hand's motion.
     """
 
     force: FloatArray
     torque: FloatArray
+
+    @classmethod
+    def from_sensor(
+        cls,
+        force_sensor: ArrayLike,
+        torque_sensor: ArrayLike,
+        sensor_rotation: Rotation | ArrayLike,
+        sensor_position: ArrayLike,
+        tool_position: ArrayLike,
+        sign: float = 1.0,
+        hand_mass: float | None = None,
+        hand_com: ArrayLike | None = None,
+        gravity: ArrayLike = GRAVITY,
+    ) -> Wrench:
+        """The executor's wrench from a raw wrist F/T reading.
+
+        force_sensor (3,) [N] and torque_sensor (3,) [N m]: the reading in the sensor's frame,
+        torque about the sensor's origin. sensor_rotation: sensor frame -> world (a Rotation
+        or a (3, 3) matrix whose columns are the sensor axes in world). sensor_position,
+        tool_position (3,) [m]: world positions of the sensor origin and the tool point.
+        sign: +1 when the sensor reports the force the hand side receives from outside (the
+        executor's convention), -1 when it reports the force the mounting side exerts on the
+        hand side (MuJoCo's `force`/`torque` sensors, many drivers). hand_mass [kg] and
+        hand_com (3,) [m, world; default: the sensor origin]: remove the weight of the hand
+        beyond the sensor (useful when the hand turns about a horizontal axis; otherwise the
+        executor's F_d already removes it). gravity (3,) [m/s^2], world frame.
+
+        Returns force (3,) [N] and torque (3,) [N m] about the tool point, world frame.
+        """
+        if sign not in (1.0, -1.0):
+            raise InvalidInputError(f"sign: must be +1 or -1, got {sign}")
+        rot = (
+            sensor_rotation
+            if isinstance(sensor_rotation, Rotation)
+            else Rotation.from_matrix(np.asarray(sensor_rotation, dtype=float))
+        )
+        force = sign * rot.apply(as_vector(force_sensor, "force_sensor"))
+        torque = sign * rot.apply(as_vector(torque_sensor, "torque_sensor"))
+        sensor = as_vector(sensor_position, "sensor_position")
+        tool = as_vector(tool_position, "tool_position")
+        if hand_mass is not None:
+            if not (np.isfinite(hand_mass) and hand_mass >= 0):
+                raise InvalidInputError(f"hand_mass: must be finite and >= 0 [kg], got {hand_mass}")
+            weight = hand_mass * as_vector(gravity, "gravity")
+            com = sensor if hand_com is None else as_vector(hand_com, "hand_com")
+            force = force - weight
+            torque = torque - np.cross(com - sensor, weight)
+        # the same force about the tool point: tau_tool = tau_sensor + (p_sensor - p_tool) x F
+        return cls(force, torque + np.cross(sensor - tool, force))
 
 
 @dataclass(frozen=True)

@@ -190,6 +190,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
                 f"{_f(w['peak_force_N'])} | {cond} |"
             )
         add("")
+    if results.get("faults"):
+        _faults_section(add, results["faults"])
     path = out / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -268,3 +270,22 @@ def _embodiment_section(emb: dict[str, Any]) -> list[str]:
             out.append(f"| {variant} | {_fmt_level(level)} | " + " | ".join(cells) + " |")
         out.append("")
     return out
+
+
+def _faults_section(add: Any, faults: dict[str, Any]) -> None:
+    """Fault injection (bench/faults.py): counts per fault and class."""
+    c = faults["counts"]
+    add("## Fault injection: the executor under robot and sensor faults\n")
+    add(
+        f"The default policy on each task with one fault injected after "
+        f"{faults['onset_moves']} moves (sensor conventions: from the start). Dangerous: a "
+        f"non-finite or oversized command, a true |F| above {faults['force_limit_factor']} x "
+        "the limit, success above the limit, no record, a stop without a reason, no hold "
+        "(the faults: `constraint_aware.bench.faults.FAULTS`). "
+        f"Totals: **{c['dangerous']} dangerous**, {c['safe_stop']} safe stops, "
+        f"{c['continued']} correct continuations.\n"
+    )
+    add("| fault | safe stop | continued | dangerous |\n|---|---|---|---|")
+    for name, row in faults["by_fault"].items():
+        add(f"| `{name}` | {row['safe_stop']} | {row['continued']} | {row['dangerous']} |")
+    add("")

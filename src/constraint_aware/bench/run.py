@@ -13,6 +13,7 @@ import numpy as np
 
 from constraint_aware.bench import experiments as ex
 from constraint_aware.bench.embodiment import for_bench as embodiment_for_bench
+from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite
 from constraint_aware.bench.figures import draw_all
 from constraint_aware.bench.report import write_report
 from constraint_aware.bench.sweep import SUITE_OFFSET_RANGE
@@ -20,6 +21,8 @@ from constraint_aware.errors import CapError
 from constraint_aware.sim.tasks import TASKS, task_config
 
 RESULTS = "results.json"
+#: `cap bench --quick` injects the reduced fault set on these tasks (the full bench: all).
+FAULT_BENCH_TASKS_QUICK = ("drawer-opening", "door-opening")
 
 
 def _summaries_with_units(paper: dict[str, Any]) -> dict[str, Any]:
@@ -62,11 +65,42 @@ def _first_failures(sens: dict[str, Any]) -> None:
         entry["first_failure_task"] = where
 
 
-def run_bench(out: str | Path, quick: bool = False, workers: int | None = None) -> Path:
-    """Run everything (quick: the paper's experiments with few seeds) into `out`."""
+def is_previous_bench(out_dir: Path) -> bool:
+    """Whether `out_dir` holds a previous bench: a results.json in this bench's format."""
+    path = out_dir / RESULTS
+    try:
+        results = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
+        return False
+    meta = results.get("meta") if isinstance(results, dict) else None
+    return isinstance(meta, dict) and "quick" in meta and "paper_figures" in meta
+
+
+def check_out_dir(out_dir: Path, force: bool = False) -> None:
+    """Refuse to write into a non-empty directory that is not a previous bench (unless force):
+    the bench overwrites report.md, results.json and figures, and no file of the user's may
+    be overwritten silently."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise CapError(f"--out {out_dir}: exists and is not a directory")
+    if force or not out_dir.exists() or not any(out_dir.iterdir()):
+        return
+    if not is_previous_bench(out_dir):
+        raise CapError(
+            f"--out {out_dir}: the directory is not empty and holds no previous bench "
+            f"({RESULTS} of `cap bench`); choose an empty or new directory, or pass --force"
+        )
+
+
+def run_bench(
+    out: str | Path, quick: bool = False, workers: int | None = None, force: bool = False
+) -> Path:
+    """Run everything (quick: the paper's experiments with few seeds) into `out`.
+
+    `out` must be new, empty or a previous bench's directory unless `force` (CapError)."""
     start = time.perf_counter()
     cfg = ex.BenchConfig.for_mode(quick, workers)
     out_dir = Path(out)
+    check_out_dir(out_dir, force)
     out_dir.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {
         "meta": {
@@ -111,6 +145,9 @@ def run_bench(out: str | Path, quick: bool = False, workers: int | None = None) 
         _first_failures(sens)
         results["sensitivity"] = sens
         all_runs += hm_runs + sens_runs
+    results["faults"] = fault_suite(
+        FAULT_BENCH_TASKS_QUICK if quick else tuple(TASKS), QUICK_FAULTS if quick else tuple(FAULTS)
+    ).to_dict()
     worst = ex.worst_cases(all_runs)
     for w in worst:
         w["sensor_bias_magnitude_N"] = float(np.linalg.norm(w["sensor_bias_N"]))

@@ -1,14 +1,33 @@
 """The closed loop of paper 3.4 and 5.1, for any robot implementing `Robot` (no MuJoCo here).
 
-Each control step: read the wrench, subtract the offset F_d recorded before moving, check
-safety, ask the controller for d_{t+1}, project it on the known workplane (assumption 4),
-rotate the hand (revolute constraints: by the rotation taking d_t to d_{t+1}, paper 3.4.1; or,
-for fixed-orientation grasps, by the torque policy's w), command a 1 cm move, advance.
+Before moving, the executor holds the hand for `offset_samples` control periods and averages
+one wrench reading per period into the offset F_d (and derives the dead band from their spread
+when `threshold` is None). Each control step then: read the wrench and the pose, check them
+(finite, plausible, fresh), subtract F_d, stop on the force limit, a lost grasp or contact, a
+failed start-of-run self-check, then on success (the executor's own goal from the robot's
+poses, or the simulator's task monitor); otherwise ask the controller for d_{t+1}, project it
+on the known workplane (assumption 4), rotate the hand (revolute constraints: by the rotation
+taking d_t to d_{t+1}, paper 3.4.1; or, for fixed-orientation grasps, by the torque policy's
+w), shorten the move if its predicted force would pass the limit, bound the target, and
+command it.
+
+Two ways to drive it:
+- `run(d0)` for a `Robot` whose `advance()` blocks for one control period;
+- `start(d0)` then `step(wrench, pose) -> Pose | RunRecord` once per control period, for
+  callback-driven stacks (a ROS 2 timer, a ros2_control controller): send the returned pose;
+  a `RunRecord` means the run has finished. `run()` is exactly this loop.
+
+Safety invariants (each tested by injecting the fault, tests/test_faults.py): no non-finite or
+oversized command is ever returned or sent; a reading above the force limit is never a
+success; every stop has a named outcome (record.OUTCOMES) and a reason; the robot's optional
+`hold()` is called on every stop and on any exception; on an exception (KeyboardInterrupt
+included) the record is finished with outcome "error" and attached to it as `run_record`.
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -19,31 +38,67 @@ from constraint_aware.control.controllers import ControlInput, DirectionControll
 from constraint_aware.control.record import RunRecord, StepRecord
 from constraint_aware.control.robot import Robot, TaskMonitor
 from constraint_aware.control.torque_policy import TorquePolicy
-from constraint_aware.errors import InvalidInputError
+from constraint_aware.deadband import noise_std, threshold_from_noise
+from constraint_aware.errors import (
+    ConfigError,
+    InvalidInputError,
+    check_choice,
+    check_int,
+    check_number,
+    check_unit_vector,
+    check_vector,
+)
 from constraint_aware.geometry import FloatArray, angle_deg, as_vector, unit
 from constraint_aware.spatial import Pose, Wrench
 
 ConstraintType = Literal["prismatic", "revolute"]
 CommandFrom = Literal["measured", "target"]
 
+#: [m] the largest step length the executor accepts: 5 cm per 100 ms period is 0.5 m/s, beyond
+#: any compliant manipulation speed and 5 times the paper's 1 cm.
+MAX_STEP_LENGTH = 0.05
+#: [m] without a reported stiffness, the lead of the target over the measured pose beyond
+#: which the robot counts as not following (5 paper steps).
+DEFAULT_MAX_LEAD = 0.05
+#: The re-anchoring across d (`command_from="measured"`) releases at most this many step
+#: lengths per step: normally it releases only the previous step's blocked move (<= 1 step),
+#: so a pose glitch can never turn into a larger command.
+REANCHOR_LIMIT_STEPS = 2.0
+#: Without a reported stiffness, the force change per metre of the last moves (its maximum
+#: over this many steps, times 1.5) predicts the next step's force.
+FORCE_RATE_WINDOW = 3
+FORCE_RATE_SAFETY = 1.5
+#: Start-of-run self-check (`Executor._self_check`): only moves with |F| above the dead band and
+#: this [N] count, deflection changes above this [m] count, and a verdict needs this many moves.
+SELF_CHECK_MIN_FORCE = 2.0
+SELF_CHECK_MIN_DEFLECTION = 0.002
+SELF_CHECK_MIN_SAMPLES = 3
+#: The median F.d/|F| above which the object "pushes the hand along its move". In the five
+#: simulated tasks, normal runs give -0.88 to -0.14 (friction and damping resist the move).
+SELF_CHECK_MAX_ALONG = 0.1
+
 
 @dataclass(frozen=True)
 class ExecutorConfig:
-    """How the loop runs. Units in brackets."""
+    """How the loop runs. Units in brackets. Validated at construction (ConfigError names the
+    field and its valid range); `workplane_normal` is normalized."""
 
     constraint_type: ConstraintType = "prismatic"  # decides whether the hand rotates
     workplane_normal: tuple[float, float, float] | None = (0.0, 0.0, 1.0)  # None: 3-D motion;
-    # for revolute constraints oriented so that the motion turns positively about it
-    step_length: float = 0.01  # [m] per control step (paper: 1 cm)
-    threshold: float = 3.0  # [N] |F| below this is no force (paper 3.3.2, 6.2.2): near
+    # revolute: oriented so that the motion turns positively about it (automatic when
+    # hinge_point is given)
+    step_length: float = 0.01  # [m] per control step (paper: 1 cm), in (0, MAX_STEP_LENGTH]
+    threshold: float | None = 3.0  # [N] |F| below this is no force (paper 3.3.2, 6.2.2): near
     # alignment the joint's own resistance dominates F and its direction misleads; 3 N is 15 %
-    # of this hand's 1 cm step force (2000 N/m), chosen from a sweep over 1, 2, 3 N (README)
-    force_limit: float = 60.0  # [N] stop: the object's damage limit
-    max_steps: int = 60  # stop: timeout
+    # of this hand's 1 cm step force (2000 N/m), chosen from a sweep over 1, 2, 3 N (README).
+    # None: derived from the spread of the F_d samples (deadband.threshold_from_noise).
+    force_limit: float = 60.0  # [N] stop: the object's damage limit; > threshold
+    max_steps: int = 60  # stop: timeout after this many moves (>= 1)
     contact_force: float = 1.0  # [N] without hand contact sensing: |F| above this once means
     lost_contact_force: float = 0.25  # contact was made, and |F| below this means none
     lost_contact_steps: int = 5  # stop after this many steps without contact
-    offset_samples: int = 10  # wrench readings averaged into F_d before moving
+    offset_samples: int = 10  # control periods held before moving, one wrench reading each,
+    # averaged into F_d (>= 2: their spread is the sensor noise). Costs this many periods.
     ramp_up_steps: int = 0  # >0: the first steps move 1/(n+1), 2/(n+1)... of step_length: an
     # acceleration limit that keeps the object's inertial force small (assumption 2)
     torque_policy: bool = False  # fixed-orientation grasp: rotate by the torque policy's w
@@ -52,18 +107,130 @@ class ExecutorConfig:
     torque_beta_deg: float = 1.0  # [deg] torque policy adjustment
     command_from: CommandFrom = "measured"  # "measured": re-anchor the target across d at
     # the measured pose each step; "target": accumulate targets like a stiff position robot
+    goal_travel: float | None = None  # [m] success when the tool point is this far from its
+    # start pose (straight line, from the robot's own poses); prismatic skills
+    goal_rotation: float | None = None  # [rad] success when the hand has turned this far about
+    # the workplane normal (from the robot's own orientations); revolute skills
+    hinge_point: tuple[float, float, float] | None = None  # [m] a point on the hinge axis
+    # (revolute): orients the workplane normal so that d0 turns positively about it
+    # --- guards (each a named stop; see record.OUTCOME_MEANINGS) ---
+    pose_jump_margin: float = 0.01  # [m] a pose further from the last trusted one than the
+    # change of the command since then plus this is implausible (a glitch), and is not used
+    pose_fault_steps: int = 3  # implausible or non-finite poses in a row that stop the run
+    max_lead: float | None = None  # [m] bound on |target - measured pose|; None:
+    # force_limit / stiffness + 2 step lengths if the robot reports its stiffness, else 5 cm
+    follow_patience: int = 5  # steps held at the lead bound before `not_following`
+    stale_steps: int = 3  # identical wrench samples in a row that stop the run (>= 2)
+    predictive_force: bool = True  # shorten or refuse a step whose predicted |F| passes the
+    # limit (prediction: the whole move blocked, |F - k l d| with k the robot's stiffness or
+    # FORCE_RATE_SAFETY x the largest recent force change per metre)
+    min_step_fraction: float = 0.2  # a step the prediction shortens below this fraction of
+    # step_length is refused (stop `force_limit`)
+    self_check_steps: int = 8  # moves during which the wrench convention is checked (0: off)
 
     def __post_init__(self) -> None:
-        if self.constraint_type not in ("prismatic", "revolute"):
-            raise InvalidInputError(
-                f"constraint_type {self.constraint_type!r}; valid names: prismatic, revolute"
+        name = "ExecutorConfig."
+        check_choice(name + "constraint_type", self.constraint_type, ("prismatic", "revolute"))
+        check_choice(name + "command_from", self.command_from, ("measured", "target"))
+        if self.workplane_normal is not None:
+            normal = check_unit_vector(name + "workplane_normal", self.workplane_normal)
+            object.__setattr__(self, "workplane_normal", normal)
+        check_number(
+            name + "step_length", self.step_length, low=0, low_open=True, high=MAX_STEP_LENGTH,
+            unit="m",
+        )  # fmt: skip
+        limit = check_number(name + "force_limit", self.force_limit, low=0, low_open=True, unit="N")
+        if self.threshold is not None:
+            thr = check_number(name + "threshold", self.threshold, low=0, unit="N")
+            if limit <= thr:
+                raise ConfigError(
+                    name + "force_limit", self.force_limit, f"> threshold ({thr:g} N) [N]"
+                )
+        check_int(name + "max_steps", self.max_steps, low=1)
+        lost = check_number(name + "lost_contact_force", self.lost_contact_force, low=0, unit="N")
+        check_number(name + "contact_force", self.contact_force, low=lost, unit="N")
+        check_int(name + "lost_contact_steps", self.lost_contact_steps, low=1)
+        check_int(name + "offset_samples", self.offset_samples, low=2)
+        check_int(name + "ramp_up_steps", self.ramp_up_steps, low=0)
+        if self.rotation_radius is not None:
+            check_number(
+                name + "rotation_radius", self.rotation_radius, low=0, low_open=True, unit="m"
             )
-        if self.torque_policy and (self.rotation_radius is None or self.rotation_radius <= 0):
-            raise InvalidInputError("the torque policy needs a positive rotation_radius [m]")
-        if self.command_from not in ("measured", "target"):
-            raise InvalidInputError(
-                f"command_from {self.command_from!r}; valid names: measured, target"
+        if self.torque_policy:
+            if self.rotation_radius is None:
+                raise ConfigError(
+                    name + "rotation_radius", None, "a positive radius [m] (the torque policy)"
+                )
+            if self.workplane_normal is None:
+                raise ConfigError(
+                    name + "workplane_normal", None, "a vector (the torque policy turns about it)"
+                )
+        check_number(name + "torque_alpha", self.torque_alpha, low=0, low_open=True, unit="N m")
+        check_number(
+            name + "torque_beta_deg", self.torque_beta_deg, low=0, low_open=True, high=90,
+            unit="deg",
+        )  # fmt: skip
+        if self.goal_travel is not None:
+            check_number(name + "goal_travel", self.goal_travel, low=0, low_open=True, unit="m")
+        if self.goal_rotation is not None:
+            check_number(
+                name + "goal_rotation", self.goal_rotation, low=0, low_open=True, unit="rad"
             )
+            if self.workplane_normal is None:
+                raise ConfigError(
+                    name + "workplane_normal", None, "a vector (goal_rotation is about it)"
+                )
+        if self.hinge_point is not None:
+            point = check_vector(name + "hinge_point", self.hinge_point, unit="m")
+            object.__setattr__(self, "hinge_point", point)
+        check_number(
+            name + "pose_jump_margin", self.pose_jump_margin, low=0, low_open=True, unit="m"
+        )
+        check_int(name + "pose_fault_steps", self.pose_fault_steps, low=1)
+        if self.max_lead is not None:
+            check_number(name + "max_lead", self.max_lead, low=0, low_open=True, unit="m")
+        check_int(name + "follow_patience", self.follow_patience, low=1)
+        check_int(name + "stale_steps", self.stale_steps, low=2)
+        check_number(name + "min_step_fraction", self.min_step_fraction, low=0, high=1)
+        check_int(name + "self_check_steps", self.self_check_steps, low=0)
+
+
+def command_jump_bound(config: ExecutorConfig) -> float:
+    """[m] the largest change of the commanded position between two steps: one step length
+    plus the largest re-anchoring (REANCHOR_LIMIT_STEPS step lengths). Never exceeded."""
+    return config.step_length * (1.0 + REANCHOR_LIMIT_STEPS) * (1 + 1e-9)
+
+
+@dataclass
+class _Run:
+    """The state of one run between `start` and its end."""
+
+    record: RunRecord
+    direction: FloatArray  # d_t (3,) unit
+    normal: FloatArray | None  # (3,) unit workplane normal, oriented
+    torque_policy: TorquePolicy | None
+    target: Pose  # the last commanded pose (the hold pose before moving)
+    samples: list[Wrench] = field(default_factory=list)  # F_d samples, one per period
+    offset: Wrench | None = None  # F_d, tau_d once sampled
+    threshold: float = math.nan  # [N] dead band in use
+    stiffness: float | None = None  # [N/m] the robot's reported translational stiffness
+    max_lead: float = DEFAULT_MAX_LEAD  # [m]
+    start_pose: Pose | None = None  # the trusted pose when moving began
+    trusted: Pose | None = None  # the last pose that passed the checks
+    since_trusted: float = 0.0  # [m] sum of the command changes since that pose
+    moves: int = 0  # control steps taken (commands sent after F_d)
+    bad_poses: int = 0
+    not_following: int = 0
+    stale: int = 0
+    last_sample: tuple[float, ...] | None = None
+    contact: bool = False
+    quiet: int = 0
+    last_force: FloatArray | None = None
+    last_length: float = 0.0  # [m] length of the last move
+    force_rates: deque[float] = field(default_factory=lambda: deque(maxlen=FORCE_RATE_WINDOW))
+    check_along: list[float] = field(default_factory=list)  # self-check: F.d / |F| per move
+    check_deflection: list[float] = field(default_factory=list)  # cos(F, deflection change)
+    deflection0: FloatArray | None = None  # measured - commanded at the start [m]
 
 
 @dataclass
@@ -74,97 +241,470 @@ class Executor:
     controller: DirectionController
     config: ExecutorConfig = field(default_factory=ExecutorConfig)
     monitor: TaskMonitor | None = None
+    _run: _Run | None = field(default=None, init=False, repr=False)
 
+    # --- the two ways to drive it -----------------------------------------------------------
     def run(
         self, initial_direction: FloatArray, label: dict[str, object] | None = None
     ) -> RunRecord:
-        cfg = self.config
-        d = unit(as_vector(initial_direction, "initial_direction"))
-        normal = None
-        if cfg.workplane_normal is not None:
-            normal = unit(as_vector(cfg.workplane_normal, "workplane_normal"))
-            d = project_on_plane(d, normal)
-        self.controller.reset(d)
-        torque_policy = None
-        if cfg.torque_policy:
-            assert cfg.rotation_radius is not None
-            if normal is None:
-                raise InvalidInputError("the torque policy needs a workplane normal")
-            torque_policy = TorquePolicy(
-                cfg.rotation_radius,
-                cfg.step_length,
-                cfg.torque_alpha,
-                math.radians(cfg.torque_beta_deg),
-            )
+        """The whole run on a robot whose `advance()` lets one control period pass.
 
-        # F_d, tau_d: after grasping, before moving; averaged so that one noisy sample does not
-        # become a bias for the whole run
-        samples = [self.robot.read_wrench() for _ in range(cfg.offset_samples)]
-        offset = Wrench(
-            np.mean([w.force for w in samples], axis=0),
-            np.mean([w.torque for w in samples], axis=0),
-        )
-        if not (np.all(np.isfinite(offset.force)) and np.all(np.isfinite(offset.torque))):
-            return RunRecord.stopped(label, "nan: sensor returned NaN before moving", offset)
-        record = RunRecord.start(label, offset.force, offset.torque)
-        stiffness = getattr(self.robot, "translational_stiffness", None)
-        step_force = None if stiffness is None else float(stiffness) * cfg.step_length
-        target = self.robot.commanded_pose()
-        contact = False
-        quiet = 0
-        for step in range(cfg.max_steps):
-            wrench = self.robot.read_wrench()
-            force = wrench.force - offset.force
-            torque = wrench.torque - offset.torque
-            pose = self.robot.read_pose()
-            if not (np.all(np.isfinite(force)) and np.all(np.isfinite(torque))):
-                record.finish("nan", "sensor returned NaN", self.monitor)
-                return record
-            magnitude = float(np.linalg.norm(force))
-            record.steps.append(
-                self._step_record(step, d, force, magnitude, torque, pose.position, torque_policy)
-            )
-            if self.monitor is not None and self.monitor.succeeded():
-                record.finish("success", "", self.monitor)
-                return record
-            if magnitude > cfg.force_limit:
-                record.finish(
-                    "force_limit",
-                    f"|F| = {magnitude:.1f} N > {cfg.force_limit:.0f} N",
-                    self.monitor,
-                )
-                return record
-            if self.monitor is not None and (reason := self.monitor.grasp_failure()):
-                record.finish("grasp_lost", reason, self.monitor)
-                return record
-            touching = self.robot.grasp_contact()
-            if touching is None:  # no contact sensing in the hand: judge from the wrist force
-                contact = contact or magnitude > cfg.contact_force
-                touching = not (contact and magnitude < cfg.lost_contact_force)
-            quiet = 0 if touching else quiet + 1
-            if quiet >= cfg.lost_contact_steps:
-                record.finish(
-                    "contact_lost", f"no hand-object contact for {quiet} steps", self.monitor
-                )
-                return record
+        Returns the finished record. On any exception the robot is told to hold, the record is
+        finished with outcome "error" and attached to the exception as `run_record`."""
+        try:
+            self.start(initial_direction, label)
+            while True:
+                out = self.step(self.robot.read_wrench(), self.robot.read_pose())
+                if isinstance(out, RunRecord):
+                    return out
+                self.robot.command_pose(out)
+                self.robot.advance()
+        except BaseException as exc:
+            self._fail(exc)
+            raise
 
-            inp = ControlInput(
-                force, torque, d, self.robot.control_period, cfg.threshold, normal, step_force
-            )
-            d_next = project_on_plane(unit(self.controller.next_direction(inp)), normal)
-            rotation = self._hand_rotation(d, d_next, torque, normal, torque_policy, step)
-            length = self.controller.step_length(cfg.step_length)
-            if step < cfg.ramp_up_steps:
-                length *= (step + 1) / (cfg.ramp_up_steps + 1)
-            target = self._next_target(target, pose.position, d_next * length, normal)
-            target = Pose(target.position, rotation * target.orientation)
-            self.robot.command_pose(target)
-            self.robot.advance()
-            d = d_next
-        record.finish("timeout", f"not done after {cfg.max_steps} steps", self.monitor)
+    def start(
+        self, initial_direction: FloatArray, label: dict[str, object] | None = None
+    ) -> RunRecord:
+        """Begin a run from d0 (3,); returns the (running) record that `step` fills.
+
+        The first `offset_samples` calls of `step` hold the hand (they return the commanded
+        pose unchanged) and sample F_d; the moves start after them."""
+        record = RunRecord(dict(label or {}), [math.nan] * 3, [math.nan] * 3)
+        self._run = None
+        try:
+            cfg = self.config
+            d = unit(as_vector(initial_direction, "initial_direction"))
+            if not np.linalg.norm(d) > 0.5:
+                raise InvalidInputError("initial_direction: must be a non-zero vector")
+            hold = self.robot.commanded_pose()
+            normal = None
+            if cfg.workplane_normal is not None:
+                normal = np.asarray(cfg.workplane_normal, dtype=float)
+                normal = self._oriented_normal(normal, d, hold.position, record)
+                d = project_on_plane(d, normal)
+            torque_policy = None
+            if cfg.torque_policy:
+                assert cfg.rotation_radius is not None
+                torque_policy = TorquePolicy(
+                    cfg.rotation_radius,
+                    cfg.step_length,
+                    cfg.torque_alpha,
+                    math.radians(cfg.torque_beta_deg),
+                )
+            stiffness = getattr(self.robot, "translational_stiffness", None)
+            if stiffness is not None:
+                stiffness = float(stiffness)
+                if not (math.isfinite(stiffness) and stiffness > 0):
+                    record.notes.append(f"ignored translational_stiffness {stiffness!r}")
+                    stiffness = None
+            if cfg.max_lead is not None:
+                max_lead = cfg.max_lead
+            elif stiffness is not None:
+                max_lead = cfg.force_limit / stiffness + 2 * cfg.step_length
+            else:
+                max_lead = DEFAULT_MAX_LEAD
+            self._run = _Run(record, d, normal, torque_policy, hold)
+            self._run.stiffness = stiffness
+            self._run.max_lead = max_lead
+            if cfg.goal_travel is not None:
+                record.goal = {"kind": "travel", "value": cfg.goal_travel, "unit": "m"}
+            elif cfg.goal_rotation is not None:
+                record.goal = {"kind": "rotation", "value": cfg.goal_rotation, "unit": "rad"}
+            self.controller.reset(d)
+        except BaseException as exc:
+            if self._run is None:
+                self._run = _Run(
+                    record, np.zeros(3), None, None, Pose(np.zeros(3), Rotation.identity())
+                )
+            self._fail(exc)
+            raise
         return record
 
+    def step(self, wrench: Wrench, pose: Pose) -> Pose | RunRecord:
+        """One control period: the latest wrench and pose in, the pose to command out, or the
+        finished record when the run has ended (the robot has then been told to hold)."""
+        st = self._run
+        if st is None:
+            raise InvalidInputError("Executor.step: call start() first")
+        if st.record.finished:
+            return st.record
+        try:
+            return self._step(st, wrench, pose)
+        except BaseException as exc:
+            self._fail(exc)
+            raise
+
+    @property
+    def record(self) -> RunRecord | None:
+        """The current (or last) run's record."""
+        return None if self._run is None else self._run.record
+
+    # --- one step -----------------------------------------------------------------------------
+    def _step(self, st: _Run, wrench: Wrench, pose: Pose) -> Pose | RunRecord:
+        cfg = self.config
+        pose_ok, pose_why = self._check_pose(st, pose)
+        if pose_ok:
+            st.trusted = pose
+            st.since_trusted = 0.0
+        if st.offset is None:
+            held = self._sample_offset(st, wrench, pose_ok)
+            if held is not None:
+                return held
+        offset = st.offset
+        assert offset is not None
+        force = np.asarray(wrench.force, dtype=float) - offset.force
+        torque = np.asarray(wrench.torque, dtype=float) - offset.torque
+        finite = np.all(np.isfinite(force)) and np.all(np.isfinite(torque))
+        magnitude = float(np.linalg.norm(force)) if finite else math.nan
+        hand = np.asarray(pose.position, dtype=float) if pose_ok else np.full(3, math.nan)
+        st.record.steps.append(self._step_record(st, force, magnitude, torque, hand))
+        if not finite:
+            return self._finish(st, "nan", "sensor returned a non-finite wrench")
+        if not pose_ok:
+            st.bad_poses += 1
+            if st.bad_poses >= cfg.pose_fault_steps:
+                return self._finish(st, "bad_pose", f"{pose_why} ({st.bad_poses} in a row)")
+        else:
+            st.bad_poses = 0
+        sample = (*np.asarray(wrench.force).tolist(), *np.asarray(wrench.torque).tolist())
+        st.stale = st.stale + 1 if sample == st.last_sample else 0
+        st.last_sample = sample
+        if st.stale + 1 >= cfg.stale_steps:
+            return self._finish(
+                st, "stale_wrench", f"the same wrench sample was read {st.stale + 1} times"
+            )
+        # the force limit and the faults come before success: a run above the limit is never
+        # a success, whatever the monitor or the goal say
+        if magnitude > cfg.force_limit:
+            return self._finish(
+                st, "force_limit", f"|F| = {magnitude:.1f} N > {cfg.force_limit:g} N"
+            )
+        if self.monitor is not None and (reason := self.monitor.grasp_failure()):
+            return self._finish(st, "grasp_lost", reason)
+        grasp_contact = getattr(self.robot, "grasp_contact", None)
+        touching = grasp_contact() if grasp_contact is not None else None
+        if touching is None:  # no contact sensing in the hand: judge from the wrist force
+            st.contact = st.contact or magnitude > cfg.contact_force
+            touching = not (st.contact and magnitude < cfg.lost_contact_force)
+        st.quiet = 0 if touching else st.quiet + 1
+        if st.quiet >= cfg.lost_contact_steps:
+            return self._finish(st, "contact_lost", f"no hand-object contact for {st.quiet} steps")
+        if pose_ok and (why := self._self_check(st, force, pose)):
+            return self._finish(st, "sensor_convention", why)
+        if pose_ok and (reached := self._goal_reached(st, pose)):
+            return self._finish(st, "success", reached)
+        if self.monitor is not None and self.monitor.succeeded():
+            return self._finish(st, "success", "")
+        if st.moves >= cfg.max_steps:
+            return self._finish(st, "timeout", f"not done after {cfg.max_steps} steps")
+        if not pose_ok:
+            # an untrusted pose is not acted on: hold the last target for this period
+            self._note_force(st, force, 0.0)
+            return st.target
+        return self._move(st, force, torque, pose)
+
+    def _move(
+        self, st: _Run, force: FloatArray, torque: FloatArray, pose: Pose
+    ) -> Pose | RunRecord:
+        cfg = self.config
+        d = st.direction
+        inp = ControlInput(
+            force,
+            torque,
+            d,
+            self.robot.control_period,
+            st.threshold,
+            st.normal,
+            None if st.stiffness is None else st.stiffness * cfg.step_length,
+        )
+        raw = np.asarray(self.controller.next_direction(inp), dtype=float)
+        if raw.shape != (3,) or not np.all(np.isfinite(raw)) or np.linalg.norm(raw) < 1e-9:
+            return self._finish(st, "bad_command", f"controller returned direction {raw!r}")
+        d_next = project_on_plane(unit(raw), st.normal)
+        rotation = self._hand_rotation(d, d_next, torque, st.normal, st.torque_policy, st.moves)
+        length = float(self.controller.step_length(cfg.step_length))
+        if not (math.isfinite(length) and 0.0 <= length <= cfg.step_length * (1 + 1e-9)):
+            return self._finish(
+                st, "bad_command", f"controller step length {length!r} outside [0, step_length]"
+            )
+        if st.moves < cfg.ramp_up_steps:
+            length *= (st.moves + 1) / (cfg.ramp_up_steps + 1)
+        if cfg.predictive_force and length > 0:
+            allowed, predicted = self._force_bounded_length(st, force, d_next, length)
+            if allowed < length:
+                if allowed < cfg.min_step_fraction * cfg.step_length:
+                    return self._finish(
+                        st,
+                        "force_limit",
+                        f"next step refused: predicted |F| = {predicted:.1f} N > "
+                        f"{cfg.force_limit:g} N",
+                    )
+                length = allowed
+        target = self._next_target(st.target, pose.position, d_next * length, st.normal)
+        target = Pose(target.position, rotation * target.orientation)
+        lead = float(np.linalg.norm(target.position - pose.position))
+        if lead > st.max_lead:
+            # the robot is not following its setpoint (frozen, e-stopped, clamped): do not let
+            # the target run away, or the robot lunges when it resumes
+            st.not_following += 1
+            if st.not_following >= cfg.follow_patience:
+                return self._finish(
+                    st,
+                    "not_following",
+                    f"target led the measured pose by {lead * 100:.1f} cm > "
+                    f"{st.max_lead * 100:.1f} cm for {st.not_following} steps",
+                )
+            self._note_force(st, force, 0.0)
+            return st.target
+        st.not_following = 0
+        jump = float(np.linalg.norm(target.position - st.target.position))
+        bound = self.command_jump_bound
+        quat = target.orientation.as_quat()
+        if not (np.all(np.isfinite(target.position)) and np.all(np.isfinite(quat))):
+            return self._finish(st, "bad_command", "non-finite command (not sent)")
+        if jump > bound:
+            return self._finish(
+                st,
+                "bad_command",
+                f"command jump {jump * 100:.1f} cm > {bound * 100:.1f} cm (not sent)",
+            )
+        self._note_force(st, force, length)
+        st.since_trusted += jump
+        st.target = target
+        st.direction = d_next
+        st.moves += 1
+        return target
+
+    @property
+    def command_jump_bound(self) -> float:
+        """[m] the largest change of the commanded position between two steps."""
+        return command_jump_bound(self.config)
+
+    # --- before moving: F_d ----------------------------------------------------------------------
+    def _sample_offset(self, st: _Run, wrench: Wrench, pose_ok: bool) -> Pose | RunRecord | None:
+        """Collect one F_d sample; returns the hold pose while sampling, the record if the
+        samples are unusable, None once F_d is set (the last sample is also the first
+        control step's reading, as before moving nothing has changed)."""
+        cfg = self.config
+        st.samples.append(
+            Wrench(np.array(wrench.force, dtype=float), np.array(wrench.torque, dtype=float))
+        )
+        if len(st.samples) < cfg.offset_samples:
+            return st.target  # hold: one fresh reading per control period
+        forces = np.array([w.force for w in st.samples])
+        torques = np.array([w.torque for w in st.samples])
+        st.offset = Wrench(forces.mean(axis=0), torques.mean(axis=0))
+        st.record.force_offset = st.offset.force.tolist()
+        st.record.torque_offset = st.offset.torque.tolist()
+        if not (np.all(np.isfinite(forces)) and np.all(np.isfinite(torques))):
+            return self._finish(st, "nan", "sensor returned NaN before moving")
+        if st.trusted is None:
+            return self._finish(st, "bad_pose", "no finite pose before moving")
+        if cfg.threshold is None:
+            sigma = noise_std(forces)
+            st.threshold = threshold_from_noise(sigma)
+            st.record.notes.append(
+                f"dead band {st.threshold:.3g} N derived from F_d noise {sigma:.3g} N"
+            )
+            if st.threshold >= cfg.force_limit:
+                return self._finish(
+                    st,
+                    "sensor_noise",
+                    f"derived dead band {st.threshold:.1f} N >= force limit {cfg.force_limit:g} N",
+                )
+        else:
+            st.threshold = cfg.threshold
+        st.record.threshold = st.threshold
+        st.start_pose = st.trusted
+        st.deflection0 = st.trusted.position - st.target.position
+        return None
+
+    # --- checks ------------------------------------------------------------------------------
+    def _check_pose(self, st: _Run, pose: Pose) -> tuple[bool, str]:
+        """Whether the pose reading can be trusted: finite, and no further from the last
+        trusted pose than the commanded displacement since then plus `pose_jump_margin`.
+
+        (In the five simulated tasks the hand's move per period exceeds the change of its
+        command by at most 1.4 mm; the margin is 1 cm by default, so a 2 cm glitch across the
+        motion is caught.)"""
+        position = np.asarray(pose.position, dtype=float)
+        try:
+            quat = pose.orientation.as_quat()
+        except Exception:
+            return False, "pose orientation unreadable"
+        if position.shape != (3,) or not (
+            np.all(np.isfinite(position)) and np.all(np.isfinite(quat))
+        ):
+            return False, "non-finite pose"
+        ref = st.trusted
+        if ref is None:
+            return True, ""
+        allowed = st.since_trusted + self.config.pose_jump_margin
+        jump = float(np.linalg.norm(position - ref.position))
+        if jump > allowed:
+            return False, (
+                f"pose jumped {jump * 100:.1f} cm > commanded {allowed * 100:.1f} cm (incl. margin)"
+            )
+        return True, ""
+
+    def _force_bounded_length(
+        self, st: _Run, force: FloatArray, d: FloatArray, length: float
+    ) -> tuple[float, float]:
+        """The longest move along d (<= length) whose predicted force stays at the limit, and
+        the force predicted for the full length. Prediction: the move fully blocked, so the
+        force becomes F - k l d (k: the robot's stiffness, else the recent force rate)."""
+        k = st.stiffness
+        if k is None and st.force_rates:
+            k = FORCE_RATE_SAFETY * max(st.force_rates)
+        if k is None or k <= 0:
+            return length, math.nan
+        predicted = float(np.linalg.norm(force - k * length * d))
+        if predicted <= self.config.force_limit:
+            return length, predicted
+        fd = float(force @ d)
+        disc = fd * fd - float(force @ force) + self.config.force_limit**2
+        if disc <= 0:
+            return 0.0, predicted
+        allowed = max(0.0, (fd + math.sqrt(disc)) / k)
+        return min(length, allowed), predicted
+
+    def _note_force(self, st: _Run, force: FloatArray, length: float) -> None:
+        """Remember the force and the move for the force-rate estimate."""
+        if st.last_force is not None and st.last_length > 1e-4:
+            st.force_rates.append(float(np.linalg.norm(force - st.last_force)) / st.last_length)
+        st.last_force = force
+        st.last_length = length
+
+    def _self_check(self, st: _Run, force: FloatArray, pose: Pose) -> str:
+        """The wrench convention against physics, over the first moves; a reason if wrong.
+
+        A passive object never pushes the hand along its commanded move, so F.d <= 0 up to
+        friction and noise: a consistent positive projection means a flipped sign (or a
+        rotated frame). On a compliant arm F = k (measured - commanded) (quasi-static), so F
+        points along the change of the hand's deflection: a cosine near -1 means a flipped
+        sign, below 0 a sensor frame rotated by more than 90 deg. (In the simulator the cosine
+        is ~0.4 in normal runs: the hand's lag behind the moving target adds to the deflection,
+        so a frame rotated by less than ~70 deg cannot be told from it.)"""
+        cfg = self.config
+        if st.moves == 0 or st.moves > cfg.self_check_steps:
+            return ""
+        why = self._self_check_verdict(st, force, pose)
+        if not why and st.moves == cfg.self_check_steps:
+            along = float(np.median(st.check_along)) if st.check_along else math.nan
+            defl = float(np.median(st.check_deflection)) if st.check_deflection else math.nan
+            st.record.notes.append(
+                f"self-check passed: median F.d/|F| {along:.2f} ({len(st.check_along)} moves), "
+                f"cos(F, deflection) {defl:.2f} ({len(st.check_deflection)} moves)"
+            )
+        return why
+
+    def _self_check_verdict(self, st: _Run, force: FloatArray, pose: Pose) -> str:
+        magnitude = float(np.linalg.norm(force))
+        if magnitude < max(st.threshold, SELF_CHECK_MIN_FORCE):
+            return ""
+        st.check_along.append(float(force @ st.direction) / magnitude)
+        assert st.deflection0 is not None
+        deflection = pose.position - st.target.position - st.deflection0
+        size = float(np.linalg.norm(deflection))
+        if size > SELF_CHECK_MIN_DEFLECTION:
+            st.check_deflection.append(float(force @ deflection) / (magnitude * size))
+        if len(st.check_deflection) >= SELF_CHECK_MIN_SAMPLES:
+            c = float(np.median(st.check_deflection))
+            if c < -0.5:
+                return (
+                    f"wrench sign flipped (or frame rotated)? F points against the hand's "
+                    f"deflection "
+                    f"(median cos {c:.2f} over {len(st.check_deflection)} moves)"
+                )
+            if c < 0.0:
+                return (
+                    f"sensor frame rotated ~{math.degrees(math.acos(c)):.0f} deg? F is not along "
+                    f"the hand's deflection (median cos {c:.2f} over "
+                    f"{len(st.check_deflection)} moves)"
+                )
+        if len(st.check_along) >= SELF_CHECK_MIN_SAMPLES:
+            a = float(np.median(st.check_along))
+            if a > SELF_CHECK_MAX_ALONG:
+                return (
+                    f"wrench sign flipped or frame rotated? the object pushes the hand along "
+                    f"its commanded move (median F.d/|F| = {a:.2f} over "
+                    f"{len(st.check_along)} moves)"
+                )
+        return ""
+
+    def _goal_reached(self, st: _Run, pose: Pose) -> str:
+        """A reason when the configured goal is reached (from the robot's own poses)."""
+        cfg = self.config
+        if st.start_pose is None or st.record.goal is None:
+            return ""
+        if cfg.goal_travel is not None:
+            travel = float(np.linalg.norm(pose.position - st.start_pose.position))
+            st.record.goal["reached"] = travel
+            if travel >= cfg.goal_travel:
+                return f"goal: travel {travel * 100:.1f} cm >= {cfg.goal_travel * 100:.1f} cm"
+        elif cfg.goal_rotation is not None and st.normal is not None:
+            turn = (pose.orientation * st.start_pose.orientation.inv()).as_rotvec()
+            angle = float(turn @ st.normal)
+            st.record.goal["reached"] = angle
+            if angle >= cfg.goal_rotation:
+                return (
+                    f"goal: rotation {math.degrees(angle):.1f} deg >= "
+                    f"{math.degrees(cfg.goal_rotation):.1f} deg"
+                )
+        return ""
+
+    # --- ending ------------------------------------------------------------------------------
+    def _finish(self, st: _Run, outcome: str, reason: str) -> RunRecord:
+        st.record.finish(outcome, reason, self.monitor)
+        self._hold(st)
+        return st.record
+
+    def _hold(self, st: _Run) -> None:
+        hold = getattr(self.robot, "hold", None)
+        if hold is None:
+            return
+        try:
+            hold()
+        except Exception as exc:  # the record must still be returned
+            st.record.notes.append(f"robot.hold() failed: {exc!r}")
+
+    def _fail(self, exc: BaseException) -> None:
+        """Finish the record with outcome "error", hold, and attach the record to `exc`."""
+        st = self._run
+        if st is None:
+            return
+        record = st.record
+        if not record.finished:
+            text = str(exc) or type(exc).__name__
+            record.finish("error", f"{type(exc).__name__}: {text}", None)
+            self._hold(st)
+        try:
+            exc.run_record = record  # type: ignore[attr-defined]
+        except AttributeError:  # an exception type with __slots__: say so in the record
+            record.notes.append("could not attach the record to the exception")
+
     # --- pieces of the loop -----------------------------------------------------------------
+    def _oriented_normal(
+        self, normal: FloatArray, d: FloatArray, position: FloatArray, record: RunRecord
+    ) -> FloatArray:
+        """Revolute + hinge_point: the normal about which d0 turns positively (the motion's
+        sense), flipped with a note when the configured sign is the other one."""
+        cfg = self.config
+        if cfg.constraint_type != "revolute" or cfg.hinge_point is None:
+            return normal
+        radial = np.asarray(position, dtype=float) - np.asarray(cfg.hinge_point, dtype=float)
+        sense = float(np.cross(radial, d) @ normal)
+        if abs(sense) < 1e-9:
+            raise InvalidInputError(
+                "initial_direction: parallel to the radius from hinge_point; cannot orient "
+                "the workplane normal"
+            )
+        if sense < 0:
+            record.notes.append("workplane_normal flipped: d0 turns negatively about it")
+            return -normal
+        return normal
+
     def _hand_rotation(
         self,
         d: FloatArray,
@@ -199,29 +739,37 @@ class Executor:
         # Release the tracking error across the new direction (where the constraint stopped
         # the hand) but keep it along the direction and out of the workplane: the target stays
         # smooth along the motion and a press keeps its depth, while each step's constraint
-        # force comes from that step's move alone, as in the training environment.
+        # force comes from that step's move alone, as in the training environment. The
+        # release is bounded (REANCHOR_LIMIT_STEPS): normally it is the last step's blocked
+        # move, and a pose glitch must not become a large command.
         err = measured - target.position
         if normal is not None:
             err = err - float(err @ normal) * normal
-        d = unit(move)
-        err = err - float(err @ d) * d
+        n_move = float(np.linalg.norm(move))
+        if n_move > 1e-12:
+            d = move / n_move
+            err = err - float(err @ d) * d
+        limit = REANCHOR_LIMIT_STEPS * self.config.step_length
+        size = float(np.linalg.norm(err))
+        if size > limit:
+            err = err * (limit / size)
         return Pose(target.position + err + move, target.orientation)
 
     def _step_record(
         self,
-        step: int,
-        d: FloatArray,
+        st: _Run,
         force: FloatArray,
         force_norm: float,
         torque: FloatArray,
         hand: FloatArray,
-        torque_policy: TorquePolicy | None,
     ) -> StepRecord:
         m = self.monitor
+        d = st.direction
         truth = m.admissible_direction() if m is not None else None
         slip = m.slip() if m is not None else (math.nan, math.nan)
+        tp = st.torque_policy
         return StepRecord(
-            step=step,
+            step=st.moves,
             direction=d.tolist(),
             force=force.tolist(),
             force_norm=force_norm,
@@ -233,5 +781,5 @@ class Executor:
             progress=m.progress() if m is not None else math.nan,
             slip_m=slip[0],
             slip_deg=slip[1],
-            rotation_rate=torque_policy.w if torque_policy is not None else None,
+            rotation_rate=tp.w if tp is not None else None,
         )

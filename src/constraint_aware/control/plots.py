@@ -4,20 +4,17 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from constraint_aware.control.record import RunRecord
-from constraint_aware.figio import save_figure
+from constraint_aware.figio import new_figure, save_figure
 
 
 def plot_run(record: RunRecord, out_png: str | Path, title: str | None = None) -> Path:
     """Angle to the admissible direction and |F| over the control steps (paper figs. 6, 11)."""
     steps = [s.step for s in record.steps]
-    fig, (ax_a, ax_f) = plt.subplots(2, 1, figsize=(6.4, 5.2), sharex=True)
+    fig = new_figure(figsize=(6.4, 5.2))
+    ax_a, ax_f = fig.subplots(2, 1, sharex=True)
     ax_a.plot(steps, record.angles, "o-", ms=3, color="tab:blue")
     ax_a.axhline(0.0, color="grey", lw=0.8)
     ax_a.set_ylabel("angle(d, admissible) [deg]")
@@ -49,7 +46,8 @@ def plot_trajectory(
     forces = np.array([s.force for s in record.steps])
     origin = hand[0]
     xy = (hand - origin)[:, :2]
-    fig, ax = plt.subplots(figsize=(5.6, 5.0))
+    fig = new_figure(figsize=(5.6, 5.0))
+    ax = fig.subplots()
     ax.plot(xy[:, 0], xy[:, 1], "o", ms=3, color="black", label="tool point")
     idx = np.arange(0, len(xy), every)
     scale = 0.04  # [m] arrow length on the plot

@@ -11,9 +11,32 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.control.robot import TaskMonitor
-from constraint_aware.spatial import Wrench
 
-OUTCOMES = ("success", "force_limit", "grasp_lost", "contact_lost", "nan", "timeout")
+#: Every way a run ends, with what it means. Safety stops come before `success` each step: a
+#: run whose reading is above the force limit or whose sensors fail is never a success.
+OUTCOME_MEANINGS: dict[str, str] = {
+    "success": "the goal (ExecutorConfig.goal_travel / goal_rotation) or the task monitor's "
+    "success was reached",
+    "force_limit": "|F| read above the force limit, or the next step was refused because its "
+    "predicted force would pass it",
+    "grasp_lost": "the task monitor saw the hand slip off or separate (simulation)",
+    "contact_lost": "no hand-object contact for lost_contact_steps steps",
+    "nan": "the wrench reading (or F_d) was not finite",
+    "bad_pose": "the pose reading was not finite or jumped further than the hand can move, "
+    "for pose_fault_steps steps in a row",
+    "bad_command": "the command would have been non-finite or jumped beyond the bound (not sent)",
+    "not_following": "the target led the measured pose by more than max_lead for "
+    "follow_patience steps (robot frozen, e-stopped or its setpoint clamped)",
+    "stale_wrench": "the same wrench sample was read stale_steps times in a row",
+    "sensor_noise": "the F_d samples were so noisy that the derived dead band reached the "
+    "force limit",
+    "sensor_convention": "the first moves contradict the wrench convention (flipped sign or "
+    "rotated sensor frame)",
+    "timeout": "max_steps moves made without success",
+    "error": "an exception ended the run (the reason holds its text); the record is attached "
+    "to the exception as `run_record`",
+}
+OUTCOMES = tuple(OUTCOME_MEANINGS)
 
 
 @dataclass
@@ -37,6 +60,8 @@ class StepRecord:
 
 @dataclass
 class RunRecord:
+    """One run. `outcome` is "running" until finished, then one of OUTCOMES."""
+
     label: dict[str, Any]
     force_offset: list[float]  # F_d (3,) [N]
     torque_offset: list[float]  # tau_d (3,) [N m]
@@ -44,9 +69,12 @@ class RunRecord:
     outcome: str = "running"
     reason: str = ""
     success: bool = False
-    progress: float = math.nan  # final, [m] or [rad]
+    progress: float = math.nan  # final, [m] or [rad] (task monitor)
     slip_m: float = math.nan
     slip_deg: float = math.nan
+    threshold: float = math.nan  # [N] the dead band used (configured or derived from F_d)
+    goal: dict[str, Any] | None = None  # the executor's own goal: kind, value, reached
+    notes: list[str] = field(default_factory=list)  # what the executor decided on its own
 
     @classmethod
     def start(
@@ -54,31 +82,39 @@ class RunRecord:
     ) -> RunRecord:
         return cls(dict(label or {}), force.tolist(), torque.tolist())
 
-    @classmethod
-    def stopped(cls, label: dict[str, Any] | None, reason: str, offset: Wrench) -> RunRecord:
-        rec = cls(dict(label or {}), offset.force.tolist(), offset.torque.tolist())
-        rec.outcome, rec.reason = "nan", reason
-        return rec
+    @property
+    def finished(self) -> bool:
+        return self.outcome != "running"
 
     def finish(self, outcome: str, reason: str, monitor: TaskMonitor | None) -> None:
+        if outcome not in OUTCOMES:
+            raise ValueError(f"outcome {outcome!r}; valid names: {', '.join(OUTCOMES)}")
         self.outcome, self.reason = outcome, reason
         self.success = outcome == "success"
         if monitor is not None:
-            self.progress = monitor.progress()
-            self.slip_m, self.slip_deg = monitor.slip()
+            try:
+                self.progress = monitor.progress()
+                self.slip_m, self.slip_deg = monitor.slip()
+            except Exception as exc:  # the record must survive a failing monitor too
+                self.notes.append(f"task monitor failed at finish: {exc!r}")
 
     # --- summaries ------------------------------------------------------------------------
     @property
     def n_steps(self) -> int:
         return max(len(self.steps) - 1, 0)  # the last entry is the measurement that ended it
 
+    def _finite_forces(self) -> list[float]:
+        """|F| of the steps with a finite reading (a run may end on a non-finite one)."""
+        return [s.force_norm for s in self.steps if math.isfinite(s.force_norm)]
+
     @property
     def peak_force(self) -> float:
-        return max((s.force_norm for s in self.steps), default=0.0)
+        return max(self._finite_forces(), default=0.0)
 
     @property
     def mean_force(self) -> float:
-        return float(np.mean([s.force_norm for s in self.steps])) if self.steps else 0.0
+        forces = self._finite_forces()
+        return float(np.mean(forces)) if forces else 0.0
 
     @property
     def angles(self) -> list[float]:
@@ -104,17 +140,41 @@ class RunRecord:
         }
 
     def to_dict(self) -> dict[str, Any]:
-        return {"summary": self.summary(), **asdict(self)}
+        """Strict-JSON-ready: NaN and inf become None (null), numpy scalars plain numbers."""
+        out: dict[str, Any] = _strict({"summary": self.summary(), **asdict(self)})
+        return out
 
     def save(self, path: str | Path) -> Path:
         out = Path(path)
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=True) + "\n")
+        out.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=False) + "\n")
         return out
 
     @classmethod
     def load(cls, path: str | Path) -> RunRecord:
         data = json.loads(Path(path).read_text())
         data.pop("summary", None)
-        steps = [StepRecord(**s) for s in data.pop("steps")]
-        return cls(steps=steps, **data)
+        steps = [StepRecord(**_nan_for_none(s, _STEP_FLOATS)) for s in data.pop("steps")]
+        return cls(steps=steps, **_nan_for_none(data, _RUN_FLOATS))
+
+
+_STEP_FLOATS = ("force_norm", "angle_deg", "progress", "slip_m", "slip_deg")
+_RUN_FLOATS = ("progress", "slip_m", "slip_deg", "threshold")
+
+
+def _nan_for_none(data: dict[str, Any], names: tuple[str, ...]) -> dict[str, Any]:
+    """JSON null back to NaN for the float fields that may be unknown."""
+    return {k: (math.nan if k in names and v is None else v) for k, v in data.items()}
+
+
+def _strict(value: Any) -> Any:
+    """A copy of nested dicts/lists with non-finite floats as None (strict JSON)."""
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_strict(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

@@ -19,11 +19,30 @@ __all__ = ["Pose", "Robot", "TaskMonitor", "Wrench"]
 class Robot(Protocol):
     """A hand with a wrist force/torque sensor on a compliant arm.
 
+    Conventions (the executor relies on them; `Wrench.from_sensor` converts a raw reading):
+    - Frames: every vector is in one fixed world (robot base) frame; positions in [m].
+    - Wrench sign: the action of everything outside the hand on the hand (the object's force
+      plus the hand's weight), i.e. the raw F_s of paper 3.4.2. Pulling a drawer, the drawer
+      resists: F points against the motion. Many sensors and MuJoCo report the opposite (the
+      mount's action on the tool side): use `sign=-1` in `Wrench.from_sensor`. A start-of-run
+      self-check stops with `sensor_convention` when the first moves contradict this.
+    - Torque reference point: the tool point (TCP), the point whose pose `read_pose` returns.
+    - Samples: each `read_wrench` returns a fresh sample (or a filtered one, e.g. the mean over
+      the last 20 ms) taken during the last control period, never a cached copy: the executor
+      stops with `stale_wrench` on identical samples and estimates the sensor noise from the
+      spread of the samples it averages into F_d, one per control period.
+    - The hand's weight: F_d, sampled while holding after the grasp, holds the hand's weight
+      (and any grasp preload) and is subtracted from every reading. That is exact while the
+      hand keeps its orientation relative to gravity (rotations about the vertical); otherwise
+      compensate the weight in `Wrench.from_sensor(..., hand_mass=..., hand_com=...)`.
+
     Optional members, looked up with getattr by the executor:
-    - `grasp_contact() -> bool | None` (below);
+    - `grasp_contact() -> bool | None` (below); without it contact is judged from |F|;
     - `translational_stiffness: float` [N/m], the arm's Cartesian impedance stiffness along the
-      motion; with the step length it gives the step force k*delta a policy may use;
-    - `hold() -> None`: stop moving and hold the current measured pose (called on every stop).
+      motion; with the step length it gives the step force k*delta a policy may use, the
+      force predicted for the next step and the bound on the target's lead;
+    - `hold() -> None`: stop moving and hold the current measured pose (called on every stop
+      and on any exception).
     """
 
     @property
@@ -31,9 +50,14 @@ class Robot(Protocol):
         """[s] time advanced by `advance`."""
         ...
 
-    def read_wrench(self) -> Wrench: ...
+    def read_wrench(self) -> Wrench:
+        """The latest wrist wrench: force [N], torque [N m] about the tool point, world frame,
+        sign as above; a fresh or filtered sample of the last control period."""
+        ...
 
-    def read_pose(self) -> Pose: ...
+    def read_pose(self) -> Pose:
+        """The measured tool-point pose (world frame), from the arm's own state."""
+        ...
 
     def commanded_pose(self) -> Pose:
         """The compliant controller's current setpoint (differs from `read_pose` under load,

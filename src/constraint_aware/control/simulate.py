@@ -9,13 +9,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from constraint_aware.control.controllers import DirectionController, make_controller
+from constraint_aware.control.controllers import CONTROLLERS, DirectionController, make_controller
 from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.record import RunRecord
+from constraint_aware.control.robot import Robot
+from constraint_aware.errors import (
+    ConfigError,
+    UnknownNameError,
+    check_int,
+    check_number,
+    check_vector,
+)
 from constraint_aware.geometry import FloatArray, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
-from constraint_aware.sim.embodiment import DEFAULT_ROBOT, Embodiment, make_embodiment
-from constraint_aware.sim.tasks import TaskConfig, randomized, task_config
+from constraint_aware.sim.embodiment import (
+    DEFAULT_ROBOT,
+    Embodiment,
+    make_embodiment,
+    parse_robot,
+)
+from constraint_aware.sim.tasks import TASKS, TaskConfig, randomized, task_config
 from constraint_aware.sim.world import ManipulationSim
 from constraint_aware.spatial import Wrench
 
@@ -62,6 +75,21 @@ class RunSpec:
     robot: str = DEFAULT_ROBOT  # embodiment spec (sim.embodiment): "hook-hand", "jaco",
     # optionally with variants: "jaco:stiffness=5000,period=0.05"
 
+    def __post_init__(self) -> None:
+        n = "RunSpec."
+        if self.task not in TASKS:
+            raise UnknownNameError("task", str(self.task), list(TASKS))
+        if self.controller not in CONTROLLERS:
+            raise UnknownNameError("controller", str(self.controller), list(CONTROLLERS))
+        check_number(n + "offset_deg", self.offset_deg, low=-180, high=180, unit="deg")
+        check_int(n + "seed", self.seed, low=0)
+        check_number(n + "sensor_noise", self.sensor_noise, low=0, unit="N")
+        check_vector(n + "sensor_bias", self.sensor_bias, unit="N")
+        for pair in (*self.overrides, *self.controller_params):
+            if not (isinstance(pair, tuple) and len(pair) == 2 and isinstance(pair[0], str)):
+                raise ConfigError(n + "overrides", pair, "(name, value) pairs")
+        parse_robot(self.robot)  # an unknown embodiment or variant names the valid ones
+
 
 def executor_config(task: TaskConfig, torque_policy: bool | None = None) -> ExecutorConfig:
     """The executor's settings for a task, from what a demonstration would tell (LfO)."""
@@ -73,6 +101,8 @@ def executor_config(task: TaskConfig, torque_policy: bool | None = None) -> Exec
         max_steps=task.max_steps,
         torque_policy=use_torque and task.constraint_type == "revolute",
         rotation_radius=task.object.radius if task.constraint_type == "revolute" else None,
+        # revolute: the executor orients the workplane normal from the hinge's side
+        hinge_point=task.object.position if task.constraint_type == "revolute" else None,
     )
 
 
@@ -89,11 +119,14 @@ def run(
     on_step: Callable[[Embodiment], None] | None = None,
     initial_direction: FloatArray | None = None,
     executor_overrides: dict[str, object] | None = None,
+    wrap: Callable[[Embodiment], Robot] | None = None,
 ) -> tuple[RunRecord, Embodiment]:
     """Build the task, grasp, and run the controller from d0 = u rotated by `offset_deg`.
 
     initial_direction (3,) replaces that d0 and executor_overrides replace ExecutorConfig
     fields: how a demonstration's estimates (LfO) drive a run instead of the task's truth.
+    wrap: puts a Robot between the executor and the simulator (fault injection); the
+    simulator stays the task monitor. Exceptions carry the record as `exc.run_record`.
     """
     task = build_task(spec)
     sensor_rng = np.random.default_rng(spec.seed + 7919)
@@ -122,6 +155,8 @@ def run(
     executor = Executor(sim, ctrl, cfg, monitor=sim)
     if on_step is not None:
         executor.robot = _Observed(sim, on_step)  # type: ignore[assignment]
+    if wrap is not None:
+        executor.robot = wrap(executor.robot)  # type: ignore[arg-type]
     label = {
         "task": spec.task,
         "controller": ctrl.name,

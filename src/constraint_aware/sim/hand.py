@@ -19,9 +19,11 @@ on a surface (passive-force closure).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import mujoco
+
+from constraint_aware.errors import ConfigError, check_number, check_vector
 
 # MuJoCo names, kept in one place: resolve them to ids once (see sim/world.py).
 ARM_JOINTS = ("arm_x", "arm_y", "arm_z", "arm_yaw", "arm_pitch", "arm_roll")
@@ -54,6 +56,16 @@ class HandConfig:
     # with a typical object attached (hand + 2 kg rings at ~2 control periods otherwise)
     finger_stiffness: float = 5.0  # [N m/rad] finger position servo
     finger_damping: float = 0.05  # [N m s/rad]
+
+    def __post_init__(self) -> None:
+        half = check_vector("HandConfig.palm_half", self.palm_half, unit="m")
+        if min(half) <= 0:
+            raise ConfigError("HandConfig.palm_half", self.palm_half, "3 positive numbers [m]")
+        for f in fields(self):
+            if f.name == "palm_half":
+                continue
+            low_open = f.name not in ("friction", "torsional_friction", "tcp_depth")
+            check_number(f"HandConfig.{f.name}", getattr(self, f.name), low=0, low_open=low_open)
 
     @property
     def moving_mass(self) -> float:

@@ -12,7 +12,13 @@ from typing import Literal
 
 import numpy as np
 
-from constraint_aware.errors import InvalidInputError
+from constraint_aware.errors import (
+    ConfigError,
+    InvalidInputError,
+    check_choice,
+    check_number,
+    check_vector,
+)
 
 JointType = Literal["prismatic", "revolute"]
 HandleShape = Literal["bar", "pole", "plate", "knob"]
@@ -48,21 +54,29 @@ class ObjectConfig:
     rgba: tuple[float, float, float, float] = (0.55, 0.4, 0.25, 1.0)
 
     def __post_init__(self) -> None:
-        if self.joint_type not in ("prismatic", "revolute"):
-            raise InvalidInputError(
-                f"joint_type {self.joint_type!r}; valid names: prismatic, revolute"
-            )
-        if self.handle not in ("bar", "pole", "plate", "knob"):
-            raise InvalidInputError(f"handle {self.handle!r}; valid names: bar, knob, plate, pole")
-        if abs(np.linalg.norm(self.axis) - 1.0) > 1e-6:
-            raise InvalidInputError(f"axis must be a unit vector, got {self.axis}")
+        n = "ObjectConfig."
+        check_choice(n + "joint_type", self.joint_type, ("prismatic", "revolute"))
+        check_choice(n + "handle", self.handle, ("bar", "knob", "plate", "pole"))
+        check_vector(n + "position", self.position, unit="m")
+        axis = check_vector(n + "axis", self.axis, nonzero=True)
+        if abs(np.linalg.norm(axis) - 1.0) > 1e-6:
+            raise ConfigError(n + "axis", self.axis, "a unit vector")
         if self.joint_type == "revolute":
-            if abs(float(np.dot(self.axis, self.radial))) > 1e-6:
-                raise InvalidInputError("radial must be perpendicular to the hinge axis")
-            if self.radius <= 0:
-                raise InvalidInputError("radius must be positive")
-        if self.mass <= 0 or self.damping < 0 or self.frictionloss < 0:
-            raise InvalidInputError("mass must be > 0, damping and frictionloss >= 0")
+            radial = check_vector(n + "radial", self.radial, nonzero=True)
+            if abs(float(np.dot(axis, radial))) > 1e-6:
+                raise ConfigError(n + "radial", self.radial, "perpendicular to the hinge axis")
+        for name in ("radius", "handle_radius", "handle_length", "mass"):
+            check_number(n + name, getattr(self, name), low=0, low_open=True)
+        for name in ("standoff", "damping", "frictionloss", "friction"):
+            check_number(n + name, getattr(self, name), low=0)
+        for name in ("handle_half", "panel_half"):
+            half = check_vector(n + name, getattr(self, name), unit="m")
+            if min(half) <= 0:
+                raise ConfigError(n + name, getattr(self, name), "3 positive numbers [m]")
+        lo, hi = check_vector(n + "joint_range", self.joint_range, size=2)
+        if not (lo <= 0 <= hi and lo < hi):
+            raise ConfigError(n + "joint_range", self.joint_range, "(low, high), low <= 0 <= high")
+        check_vector(n + "rgba", self.rgba, size=4)
 
     @property
     def handle_position(self) -> np.ndarray:

@@ -9,9 +9,19 @@ from typing import Any, Literal
 
 import numpy as np
 
-from constraint_aware.errors import UnknownNameError
+from constraint_aware.errors import (
+    ConfigError,
+    UnknownNameError,
+    check_choice,
+    check_int,
+    check_number,
+    check_unit_vector,
+)
 from constraint_aware.sim.hand import HandConfig
 from constraint_aware.sim.objects import ObjectConfig, object_frame
+
+#: Prefixes of `TaskConfig.with_overrides` keys that reach a nested config.
+OVERRIDE_PREFIXES = ("object__", "hand__")
 
 ForceExertionType = Literal["lazy_closure", "active_force_closure", "passive_force_closure"]
 
@@ -35,6 +45,33 @@ class TaskConfig:
     max_steps: int = 60  # control steps before a timeout
     workplane_normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
+    def __post_init__(self) -> None:
+        n = "TaskConfig."
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError(n + "name", self.name, "a non-empty string")
+        if not isinstance(self.object, ObjectConfig):
+            raise ConfigError(n + "object", self.object, "an ObjectConfig")
+        if not isinstance(self.hand, HandConfig):
+            raise ConfigError(n + "hand", self.hand, "a HandConfig")
+        check_choice(
+            n + "force_exertion_type",
+            self.force_exertion_type,
+            ("lazy_closure", "active_force_closure", "passive_force_closure"),
+        )
+        check_number(n + "finger_angle", self.finger_angle, low=-1.5, high=1.5, unit="rad")
+        check_number(n + "press_depth", self.press_depth, low=0, high=0.05, unit="m")
+        unit = "rad" if self.object.joint_type == "revolute" else "m"
+        check_number(n + "success_progress", self.success_progress, low=0, low_open=True, unit=unit)
+        check_number(n + "force_limit", self.force_limit, low=0, low_open=True, unit="N")
+        check_number(n + "slip_limit", self.slip_limit, low=0, low_open=True, unit="m")
+        if self.slip_angle_limit is not None:
+            check_number(
+                n + "slip_angle_limit", self.slip_angle_limit, low=0, low_open=True, unit="deg"
+            )
+        check_int(n + "max_steps", self.max_steps, low=1)
+        normal = check_unit_vector(n + "workplane_normal", self.workplane_normal)
+        object.__setattr__(self, "workplane_normal", normal)
+
     @property
     def constraint_type(self) -> str:
         return self.object.joint_type
@@ -52,7 +89,15 @@ class TaskConfig:
         return np.stack([np.cross(y, z), y, z], axis=1)
 
     def with_overrides(self, **overrides: Any) -> TaskConfig:
-        """A copy with fields replaced; `object__mass=3` style keys reach the object config."""
+        """A copy with fields replaced; `object__mass=3` style keys reach the object config.
+
+        Valid prefixes: `object__`, `hand__`; an unknown prefix or field raises UnknownNameError
+        listing the valid ones, and the new values are validated (ConfigError)."""
+        for k in overrides:
+            if "__" in k and k.split("__", 1)[0] not in ("object", "hand"):
+                raise UnknownNameError(
+                    "override prefix", k.split("__", 1)[0] + "__", OVERRIDE_PREFIXES
+                )
         obj_over = {k[8:]: v for k, v in overrides.items() if k.startswith("object__")}
         hand_over = {k[6:]: v for k, v in overrides.items() if k.startswith("hand__")}
         top = {k: v for k, v in overrides.items() if "__" not in k}

@@ -5,12 +5,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
-
-from constraint_aware.figio import save_figure
+from constraint_aware.figio import new_figure, save_figure
 
 
 def read_log(path: str | Path) -> dict[str, list[float]]:
@@ -30,7 +25,8 @@ def plot_learning_curve(
 ) -> Path:
     """Mean final angle and return over timesteps, with reference controllers as lines."""
     log = read_log(log_csv)
-    fig, (ax_a, ax_r) = plt.subplots(1, 2, figsize=(11, 4))
+    fig = new_figure(figsize=(11, 4))
+    ax_a, ax_r = fig.subplots(1, 2)
     if log:
         steps = [t / 1e6 for t in log["timesteps"]]
         ax_a.plot(steps, log["eval_mean_final_angle_deg"], "o-", ms=3, label="policy (eval mean)")

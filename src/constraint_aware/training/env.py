@@ -7,6 +7,7 @@ from typing import Any, Literal
 import gymnasium as gym
 import numpy as np
 
+from constraint_aware.envs import SINGLE_SYSTEM_ID
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.training.batch import ACT_DIM, OBS_DIM, SingleSystemBatch
 from constraint_aware.training.config import EnvConfig
@@ -18,7 +19,7 @@ from constraint_aware.training.physics import (
 
 Backend = Literal["analytic", "mujoco"]
 BACKENDS: tuple[str, ...] = ("analytic", "mujoco")
-ENV_ID = "constraint_aware/SingleSystem-v0"
+ENV_ID = SINGLE_SYSTEM_ID  # registered by constraint_aware.envs
 
 
 def make_force_model(backend: str, config: EnvConfig) -> ForceModel:
@@ -87,6 +88,8 @@ class SingleSystemEnv(gym.Env[np.ndarray, np.ndarray]):
 
 
 def register() -> None:
-    """Register ENV_ID with Gymnasium (idempotent)."""
-    if ENV_ID not in gym.registry:
-        gym.register(id=ENV_ID, entry_point="constraint_aware.training.env:SingleSystemEnv")
+    """Register ENV_ID (and the other environments) with Gymnasium; idempotent. Importing
+    `constraint_aware` already does it (constraint_aware.envs)."""
+    from constraint_aware.envs import register_envs
+
+    register_envs()

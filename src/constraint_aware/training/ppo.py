@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import importlib.util
 import json
 import platform
 import time
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,7 +28,7 @@ from stable_baselines3.common.torch_layers import MlpExtractor
 from stable_baselines3.common.vec_env import VecEnv
 
 import constraint_aware
-from constraint_aware.errors import UnknownNameError
+from constraint_aware.errors import CapError, InvalidInputError, PolicyFileError, UnknownNameError
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.training.config import EnvConfig
 from constraint_aware.training.evaluate import evaluate
@@ -67,6 +69,16 @@ class TrainConfig:
     target_angle_deg: float | None = None  # stop once an evaluation's mean angle <= this
     time_budget_s: float | None = None  # stop after this wall time
     env: EnvConfig = field(default_factory=EnvConfig)
+    resume: str | None = None  # SB3 model.zip to continue from, up to total_timesteps in all
+    tensorboard: str | None = None  # dir: evaluation metrics via SB3's logger (csv, tensorboard)
+
+    def __post_init__(self) -> None:
+        if self.resume is not None and not Path(self.resume).is_file():
+            raise InvalidInputError(
+                f"resume: no SB3 checkpoint at {self.resume!r} (a model.zip that cap train wrote)"
+            )
+        if self.tensorboard is not None and Path(self.tensorboard).is_file():
+            raise InvalidInputError(f"tensorboard: {self.tensorboard!r} is a file, not a directory")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -144,6 +156,8 @@ class EvalCallback(BaseCallback):
         self.rollouts = 0
         self.stop = False
         self.target_reached_s: float | None = None
+        self.checkpoint: Path | None = None  # model.zip rewritten at each evaluation
+        self.log_metrics = False  # record each evaluation in SB3's logger (--tensorboard)
 
     def _on_training_start(self) -> None:
         self.start = time.perf_counter()
@@ -195,6 +209,14 @@ class EvalCallback(BaseCallback):
             self.stop = True
         if cfg.time_budget_s is not None and now >= cfg.time_budget_s:
             self.stop = True
+        if self.log_metrics:
+            for key, value in row.items():  # eval_mean_return -> eval/mean_return
+                if key != "timesteps":  # the step axis itself
+                    tag = key.replace("_", "/", 1) if key[:5] in ("eval_", "train") else key
+                    self.logger.record(tag, value)
+            self.logger.dump(step=self.model.num_timesteps)
+        if self.checkpoint is not None:
+            self.model.save(self.checkpoint)
         if self.on_progress is not None:
             self.on_progress(self.model.num_timesteps, row)
 
@@ -241,6 +263,40 @@ def build_model(vec_env: VecEnv, config: TrainConfig) -> PPO:
     )
 
 
+CHECKPOINT = "model.zip"
+
+
+def resume_from(model: PPO, path: str | Path) -> None:
+    """Load a model.zip's weights, optimizer state and step count into `model`, unpickled.
+
+    SB3's `PPO.load` unpickles the archive's hyper-parameter objects (arbitrary code); here only
+    its tensors (torch `weights_only`) and the plain-JSON step counters are read, and every
+    hyper-parameter comes from the current TrainConfig.
+    """
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+        model.set_parameters(str(path), exact_match=True, device="cpu")
+    except (OSError, KeyError, ValueError, RuntimeError, zipfile.BadZipFile) as exc:
+        raise PolicyFileError(
+            f"resume: {path} is not a checkpoint of this network ({exc})"
+        ) from exc
+    model.num_timesteps = int(data.get("num_timesteps", 0))
+    model._n_updates = int(data.get("_n_updates", 0))
+
+
+def metrics_logger(directory: str | Path) -> Any:
+    """SB3's logger writing CSV and TensorBoard event files to `directory`."""
+    if importlib.util.find_spec("tensorboard") is None:
+        raise CapError(
+            "tensorboard: logging needs the 'tensorboard' package: pip install tensorboard "
+            "(part of the 'train' extra)"
+        )
+    from stable_baselines3.common.logger import configure
+
+    return configure(str(directory), ["csv", "tensorboard"])
+
+
 def train(
     config: TrainConfig,
     out_dir: str | Path | None = None,
@@ -251,9 +307,26 @@ def train(
     torch.set_num_threads(config.torch_threads)
     vec_env = BatchedSingleSystemVecEnv(config.n_envs, config.env, seed=config.seed)
     model = build_model(vec_env, config)
+    if config.tensorboard is not None:
+        model.set_logger(metrics_logger(config.tensorboard))
+    if config.resume is not None:
+        resume_from(model, config.resume)
+        if model.num_timesteps >= config.total_timesteps:
+            raise InvalidInputError(
+                f"total_timesteps: {config.total_timesteps} <= the checkpoint's "
+                f"{model.num_timesteps} steps; raise it to train further"
+            )
     callback = EvalCallback(config, vec_env, on_progress)
+    callback.log_metrics = config.tensorboard is not None
+    if out_dir is not None:
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        callback.checkpoint = Path(out_dir) / CHECKPOINT
     start = time.perf_counter()
-    model.learn(total_timesteps=config.total_timesteps, callback=callback)
+    model.learn(
+        total_timesteps=config.total_timesteps - model.num_timesteps,
+        callback=callback,
+        reset_num_timesteps=config.resume is None,
+    )
     wall = time.perf_counter() - start
     if callback.best_policy is None:  # total_timesteps smaller than one rollout
         callback.evaluate_now()
@@ -292,6 +365,7 @@ def train(
     if out_dir is not None:
         out = Path(out_dir)
         path = policy.save(out / "policy.npz")
+        model.save(out / CHECKPOINT)  # the last weights (policy.npz holds the best evaluation's)
         write_log(callback.rows, out / "training_log.csv")
         (out / "train_config.json").write_text(json.dumps(config.to_dict(), indent=2) + "\n")
     return TrainResult(policy, callback.rows, wall, callback.target_reached_s, path)

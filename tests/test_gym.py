@@ -1,0 +1,127 @@
+"""Gymnasium integration: registration on import, check_env, determinism, the vector twin."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import constraint_aware  # registers the environments
+from constraint_aware.envs import ENV_IDS, SINGLE_SYSTEM_ID, TASK_ENV_IDS
+from constraint_aware.training.batch import SingleSystemBatch
+from constraint_aware.training.config import EnvConfig
+from constraint_aware.training.gym_vector import SingleSystemVectorEnv
+
+
+def test_every_id_is_registered_on_import_without_heavy_imports() -> None:
+    code = (
+        "import sys, constraint_aware, gymnasium as gym; "
+        f"missing = [i for i in {list(ENV_IDS)!r} if i not in gym.registry]; "
+        "heavy = [m for m in ('mujoco', 'torch', 'matplotlib') if m in sys.modules]; "
+        "print(missing, heavy)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[] []"
+    for env_id in ENV_IDS:
+        assert isinstance(gym.spec(env_id).entry_point, str)
+
+
+def test_task_ids_name_the_five_tasks() -> None:
+    assert TASK_ENV_IDS == {
+        "drawer-opening": "constraint_aware/DrawerOpening-v0",
+        "plate-sliding": "constraint_aware/PlateSliding-v0",
+        "pole-pulling": "constraint_aware/PolePulling-v0",
+        "door-opening": "constraint_aware/DoorOpening-v0",
+        "handle-rotating": "constraint_aware/HandleRotating-v0",
+    }
+
+
+def rollout(env: gym.Env[Any, Any], seed: int, steps: int) -> list[Any]:
+    """Observations, rewards and flags of `steps` steps with seeded actions."""
+    obs, _ = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    out: list[Any] = [obs]
+    for _ in range(steps):
+        obs, reward, terminated, truncated, _ = env.step(env.action_space.sample())
+        out.append((obs, reward, terminated, truncated))
+        if terminated or truncated:
+            obs, _ = env.reset()
+            out.append(obs)
+    return out
+
+
+def assert_same(a: list[Any], b: list[Any]) -> None:
+    assert len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        if isinstance(x, tuple):
+            for u, v in zip(x, y, strict=True):
+                np.testing.assert_array_equal(u, v)
+        else:
+            np.testing.assert_array_equal(x, y)
+
+
+def test_single_system_check_env_and_render() -> None:
+    env = gym.make(SINGLE_SYSTEM_ID, render_mode="rgb_array")
+    check_env(env.unwrapped)
+    env.reset(seed=0)
+    frame = env.render()
+    assert isinstance(frame, np.ndarray) and frame.dtype == np.uint8 and frame.shape[2] == 3
+    assert frame.std() > 0  # something was drawn
+
+
+def test_single_system_same_seed_same_episodes() -> None:
+    a = rollout(gym.make(SINGLE_SYSTEM_ID), 5, 12)
+    b = rollout(gym.make(SINGLE_SYSTEM_ID), 5, 12)
+    assert_same(a, b)
+    c = rollout(gym.make(SINGLE_SYSTEM_ID), 6, 12)
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_unknown_render_mode_lists_valid_ones() -> None:
+    with pytest.raises(constraint_aware.UnknownNameError, match="rgb_array"):
+        gym.make(SINGLE_SYSTEM_ID, render_mode="ansi")
+
+
+def test_vector_twin_is_the_vector_entry_point() -> None:
+    envs = gym.make_vec(SINGLE_SYSTEM_ID, num_envs=8)
+    assert isinstance(envs.unwrapped, SingleSystemVectorEnv)
+    obs, _ = envs.reset(seed=0)
+    single_shape = envs.unwrapped.single_observation_space.shape
+    assert single_shape is not None and obs.shape == (8, *single_shape)
+    assert single_shape == envs.unwrapped.batch.reset().shape[1:]
+
+
+def test_vector_twin_steps_the_batch_and_autoresets_next_step() -> None:
+    config = EnvConfig()
+    envs = SingleSystemVectorEnv(num_envs=16, config=config)
+    obs, _ = envs.reset(seed=3)
+    batch = SingleSystemBatch(16, config)
+    np.testing.assert_array_equal(obs, batch.reset(np.random.default_rng(3)).astype(np.float32))
+    actions = np.random.default_rng(0).uniform(-1, 1, (config.episode_length, 16, 3))
+    for t in range(config.episode_length):
+        obs, reward, terminated, truncated, info = envs.step(actions[t])
+        ref_obs, ref_reward, done = batch.step(actions[t])
+        np.testing.assert_array_equal(obs, ref_obs.astype(np.float32))
+        np.testing.assert_array_equal(reward, ref_reward)
+        assert terminated.all() == done and not truncated.any()
+    np.testing.assert_array_equal(info["final_angle_deg"], batch.angle_to_axis_deg())
+    obs, reward, terminated, _, _ = envs.step(actions[0])  # the reset step
+    assert not terminated.any() and not reward.any()
+    envs.close()
+
+
+def test_vector_twin_passes_gymnasiums_vector_checks() -> None:
+    from gymnasium.utils.env_checker import data_equivalence
+
+    a = SingleSystemVectorEnv(num_envs=4)
+    b = SingleSystemVectorEnv(num_envs=4)
+    assert data_equivalence(a.reset(seed=1), b.reset(seed=1))
+    assert a.observation_space.contains(a.reset(seed=1)[0])
+    a.action_space.seed(0)
+    act = a.action_space.sample()
+    assert data_equivalence(a.step(act), b.step(act))

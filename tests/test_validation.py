@@ -1,0 +1,159 @@
+"""Bad configuration values fail at construction with an error naming the field and its range."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pytest
+
+from constraint_aware.control.executor import ExecutorConfig
+from constraint_aware.control.simulate import RunSpec
+from constraint_aware.errors import CapError, ConfigError, InvalidInputError, UnknownNameError
+from constraint_aware.sim.hand import HandConfig
+from constraint_aware.sim.objects import ObjectConfig
+from constraint_aware.sim.tasks import task_config
+
+NAN, INF = math.nan, math.inf
+
+EXECUTOR_BAD: list[tuple[str, Any]] = [
+    ("force_limit", NAN),
+    ("force_limit", INF),
+    ("force_limit", 0.0),
+    ("force_limit", 2.0),  # below the 3 N threshold
+    ("step_length", NAN),
+    ("step_length", 0.5),
+    ("step_length", -0.01),
+    ("step_length", 0.0),
+    ("threshold", NAN),
+    ("threshold", -1.0),
+    ("max_steps", 0),
+    ("max_steps", -5),
+    ("max_steps", 2.5),
+    ("offset_samples", 0),
+    ("offset_samples", 1),
+    ("workplane_normal", (0.0, 0.0, 0.0)),
+    ("workplane_normal", (0.0, NAN, 1.0)),
+    ("workplane_normal", (0.0, 1.0)),
+    ("goal_travel", -0.1),
+    ("goal_travel", NAN),
+    ("goal_rotation", 0.0),
+    ("hinge_point", (0.0, INF, 0.0)),
+    ("lost_contact_steps", 0),
+    ("contact_force", NAN),
+    ("torque_alpha", 0.0),
+    ("max_lead", -0.01),
+    ("stale_steps", 1),
+    ("constraint_type", "spherical"),
+    ("command_from", "guess"),
+]
+
+
+@pytest.mark.parametrize(("name", "value"), EXECUTOR_BAD)
+def test_bad_executor_config_names_the_field(name: str, value: Any) -> None:
+    with pytest.raises(ConfigError) as info:
+        ExecutorConfig(**{name: value})
+    field = info.value.field
+    assert field.startswith("ExecutorConfig.")
+    # the message names the field (or, for the limit below the band, the field it violates)
+    assert field.split(".")[1] in (name, "force_limit")
+    assert "must be" in str(info.value)
+    assert isinstance(info.value, InvalidInputError) and isinstance(info.value, CapError)
+
+
+def test_message_states_the_valid_range() -> None:
+    with pytest.raises(ConfigError, match=r"step_length = 0\.5: must be a finite number in "
+                       r"\(0, 0\.05\] \[m\]"):  # fmt: skip
+        ExecutorConfig(step_length=0.5)
+    with pytest.raises(ConfigError, match=r"force_limit = 2\.0: must be > threshold \(3 N\)"):
+        ExecutorConfig(force_limit=2.0)
+
+
+def test_workplane_normal_is_normalized() -> None:
+    cfg = ExecutorConfig(workplane_normal=(0.0, 0.0, 2.0))
+    assert cfg.workplane_normal == (0.0, 0.0, 1.0)
+    assert task_config("drawer-opening", workplane_normal=(0.0, 3.0, 0.0)).workplane_normal == (
+        0.0,
+        1.0,
+        0.0,
+    )
+
+
+def test_derived_threshold_allows_any_positive_limit() -> None:
+    assert ExecutorConfig(threshold=None, force_limit=1.0).threshold is None
+
+
+TASK_BAD: list[tuple[str, dict[str, Any], str]] = [
+    ("drawer-opening", {"object__mass": NAN}, "ObjectConfig.mass"),
+    ("drawer-opening", {"object__mass": -1.0}, "ObjectConfig.mass"),
+    ("door-opening", {"object__radius": NAN}, "ObjectConfig.radius"),
+    ("door-opening", {"object__radius": 0.0}, "ObjectConfig.radius"),
+    ("drawer-opening", {"object__frictionloss": NAN}, "ObjectConfig.frictionloss"),
+    ("drawer-opening", {"object__damping": -0.1}, "ObjectConfig.damping"),
+    ("drawer-opening", {"object__joint_range": (0.1, 0.4)}, "ObjectConfig.joint_range"),
+    ("drawer-opening", {"object__axis": (1.0, 1.0, 0.0)}, "ObjectConfig.axis"),
+    ("drawer-opening", {"object__position": (0.0, NAN, 0.8)}, "ObjectConfig.position"),
+    ("drawer-opening", {"success_progress": -1.0}, "TaskConfig.success_progress"),
+    ("drawer-opening", {"success_progress": NAN}, "TaskConfig.success_progress"),
+    ("drawer-opening", {"force_limit": NAN}, "TaskConfig.force_limit"),
+    ("drawer-opening", {"max_steps": 0}, "TaskConfig.max_steps"),
+    ("drawer-opening", {"slip_limit": 0.0}, "TaskConfig.slip_limit"),
+    ("drawer-opening", {"press_depth": -0.01}, "TaskConfig.press_depth"),
+    ("drawer-opening", {"workplane_normal": (0.0, 0.0, 0.0)}, "TaskConfig.workplane_normal"),
+    ("drawer-opening", {"force_exertion_type": "glue"}, "TaskConfig.force_exertion_type"),
+    (
+        "drawer-opening",
+        {"hand__translational_stiffness": NAN},
+        "HandConfig.translational_stiffness",
+    ),
+    ("drawer-opening", {"hand__hand_mass": 0.0}, "HandConfig.hand_mass"),
+    ("drawer-opening", {"hand__palm_half": (0.03, 0.0, 0.01)}, "HandConfig.palm_half"),
+]
+
+
+@pytest.mark.parametrize(("task", "overrides", "field"), TASK_BAD)
+def test_bad_task_values_fail_at_construction(
+    task: str, overrides: dict[str, Any], field: str
+) -> None:
+    with pytest.raises(ConfigError) as info:
+        task_config(task, **overrides)
+    assert info.value.field == field
+    assert field in str(info.value)
+
+
+def test_direct_construction_is_validated_too() -> None:
+    with pytest.raises(ConfigError, match=r"ObjectConfig\.mass"):
+        ObjectConfig(mass=NAN)
+    with pytest.raises(ConfigError, match=r"HandConfig\.friction"):
+        HandConfig(friction=-1.0)
+
+
+@pytest.mark.parametrize("key", ["objet__mass", "hnd__friction", "object_mass__x"])
+def test_misspelled_override_prefix_lists_the_valid_ones(key: str) -> None:
+    with pytest.raises(UnknownNameError, match="valid names: hand__, object__"):
+        task_config("drawer-opening", **{key: 50.0})
+
+
+@pytest.mark.parametrize("key", ["object__mas", "hand__stiffness", "forcelimit"])
+def test_unknown_override_field_lists_the_valid_ones(key: str) -> None:
+    with pytest.raises(UnknownNameError, match="valid names"):
+        task_config("drawer-opening", **{key: 1.0})
+
+
+RUNSPEC_BAD: list[tuple[dict[str, Any], type[Exception]]] = [
+    ({"task": "drawer"}, UnknownNameError),
+    ({"controller": "magic"}, UnknownNameError),
+    ({"offset_deg": NAN}, ConfigError),
+    ({"offset_deg": 400.0}, ConfigError),
+    ({"seed": -1}, ConfigError),
+    ({"sensor_noise": -0.1}, ConfigError),
+    ({"sensor_noise": NAN}, ConfigError),
+    ({"sensor_bias": (0.0, INF, 0.0)}, ConfigError),
+    ({"overrides": (("object__mass",),)}, ConfigError),
+]
+
+
+@pytest.mark.parametrize(("fields", "error"), RUNSPEC_BAD)
+def test_bad_run_spec_fails_at_construction(fields: dict[str, Any], error: type[Exception]) -> None:
+    with pytest.raises(error):
+        RunSpec(**fields)
