@@ -20,10 +20,12 @@ on a surface (passive-force closure).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-
-import mujoco
+from typing import TYPE_CHECKING
 
 from constraint_aware.errors import ConfigError, check_number, check_vector
+
+if TYPE_CHECKING:
+    from mujoco import MjSpec
 
 # MuJoCo names, kept in one place: resolve them to ids once (see sim/world.py).
 ARM_JOINTS = ("arm_x", "arm_y", "arm_z", "arm_yaw", "arm_pitch", "arm_roll")
@@ -175,7 +177,7 @@ def hand_defaults(cfg: HandConfig) -> str:
     )
 
 
-def hand_spec(cfg: HandConfig, mount_quat: tuple[float, float, float, float]) -> mujoco.MjSpec:
+def hand_spec(cfg: HandConfig, mount_quat: tuple[float, float, float, float]) -> MjSpec:
     """The arm chain, hand, actuators and wrist sensors as one spec, to attach to a scene.
 
     mount_quat (w, x, y, z): the hand's orientation when all arm hinges are at zero.
@@ -190,4 +192,6 @@ def hand_spec(cfg: HandConfig, mount_quat: tuple[float, float, float, float]) ->
   <actuator>{hand_actuators(cfg)}</actuator>
   <sensor>{hand_sensors()}</sensor>
 </mujoco>"""
+    import mujoco  # here, not at import: sim.tasks (and so the package) must stay light
+
     return mujoco.MjSpec.from_string(xml)
