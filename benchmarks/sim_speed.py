@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import time
 
@@ -42,6 +43,9 @@ def main() -> None:
     args = parser.parse_args()
     steps = 30
     out: dict[str, object] = {
+        # other processes on the machine slow every figure alike: compare embodiments by ratio
+        "load_average_1min_at_start": os.getloadavg()[0],
+        "cpu_count": os.cpu_count(),
         "episode_steps": steps,
         "controller": args.controller,
         "repeats": args.repeats,
@@ -65,6 +69,7 @@ def main() -> None:
             "min_real_time_factor": min(v["real_time_factor"] for v in per_task.values()),
             "all_five_tasks_wall_s_median": statistics.median(suite_times),
         }
+    out["load_average_1min_at_end"] = os.getloadavg()[0]
     print(json.dumps(out, indent=1))
 
 
