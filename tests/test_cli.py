@@ -269,6 +269,70 @@ def test_lfo_json_is_a_path(tmp_path: Path) -> None:
     assert json.loads(out.stdout)["skill"]["constraint_type"] == "revolute"
 
 
+def test_export_onnx_matches_the_numpy_policy(tmp_path: Path) -> None:
+    pytest.importorskip("onnxruntime")
+    out = cap("export-onnx", str(tmp_path / "p.onnx"), "--json", str(tmp_path / "e.json"))
+    assert out.returncode == 0, out.stderr
+    result = json.loads((tmp_path / "e.json").read_text())
+    assert result["parity"]["n_observations"] == 10_000
+    assert result["parity"]["max_abs_error"] <= 1e-5
+    assert result["metadata"]["observation_layout"]
+    assert (tmp_path / "p.onnx").stat().st_size > 1000
+
+
+def test_export_onnx_checks_its_output_and_policy(tmp_path: Path) -> None:
+    out = cap("export-onnx", str(tmp_path / "p.txt"))
+    assert out.returncode == 2 and "'.txt'" in out.stderr
+    out = cap("export-onnx", "--policy", str(tmp_path / "none.npz"), str(tmp_path / "p.onnx"))
+    assert out.returncode == 2 and "not found" in out.stderr
+
+
+def test_run_mcap_is_the_record(tmp_path: Path) -> None:
+    pytest.importorskip("mcap")
+    from constraint_aware.control.mcap_export import read_mcap
+
+    out = cap(
+        "run", "drawer-opening", "--controller", "fixed", "--offset", "75",
+        "--mcap", str(tmp_path / "r.mcap"), "--json", str(tmp_path / "r.json"),
+    )  # fmt: skip
+    assert out.returncode == 1, out.stderr  # written for a failed run too
+    record = read_mcap(tmp_path / "r.mcap")
+    assert record.outcome == "force_limit"
+    assert len(record.steps) == len(json.loads((tmp_path / "r.json").read_text())["steps"])
+
+
+def test_mcap_without_the_extra_fails_at_once(tmp_path: Path) -> None:
+    code = (
+        "import sys; sys.modules['mcap'] = None; "
+        "from constraint_aware.cli import main; "
+        f"sys.exit(main(['run', 'drawer-opening', '--json', {str(tmp_path / 'r.json')!r}, "
+        f"'--mcap', {str(tmp_path / 'r.mcap')!r}]))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 2
+    assert "'mcap' extra" in out.stderr
+    assert not (tmp_path / "r.json").exists()
+
+
+def test_bench_force_flag_reaches_run_bench(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    import constraint_aware.bench.run as bench_run
+
+    seen: dict[str, object] = {}
+
+    def fake_run_bench(out: str, **kwargs: object) -> Path:
+        seen.update(kwargs)
+        (Path(out) / "results.json").parent.mkdir(parents=True, exist_ok=True)
+        (Path(out) / "results.json").write_text('{"x": NaN}')
+        return Path(out) / "report.md"
+
+    monkeypatch.setattr(bench_run, "run_bench", fake_run_bench)
+    rc = main(["bench", "--out", str(tmp_path), "--force", "--json", str(tmp_path / "b.json")])
+    assert rc == 0 and seen["force"] is True
+    assert json.loads((tmp_path / "b.json").read_text()) == {"x": None}  # strict JSON
+
+
 def test_view_without_display_is_a_clear_error() -> None:
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     out = subprocess.run(

@@ -449,3 +449,112 @@ def test_wrench_from_sensor_frame_sign_lever_and_weight() -> None:
     np.testing.assert_allclose(w.force, 0.0, atol=1e-12)
     with pytest.raises(InvalidInputError, match="sign"):
         Wrench.from_sensor(np.zeros(3), np.zeros(3), np.eye(3), np.zeros(3), np.zeros(3), sign=2)
+
+
+class NumpyDrawer:
+    """A Robot written outside the package against the protocol only (numpy, no MuJoCo, no
+    TaskMonitor): a drawer on a guide along U with dry friction, rigidly held by a hand on a
+    compliant arm (stiffness k, quasi-static), a noisy wrist sensor that also reads the hand's
+    weight, and hold()."""
+
+    control_period = 0.1
+
+    def __init__(self, k: float = 2000.0, friction: float = 4.0, seed: int = 0) -> None:
+        self.k = k
+        self.friction = friction  # [N] Coulomb friction of the guide
+        self.rng = np.random.default_rng(seed)
+        self.s = 0.0  # [m] drawer opening
+        self.target = Pose(np.zeros(3), Rotation.identity())
+        self.next: Pose | None = None
+        self.held = 0
+
+    @property
+    def translational_stiffness(self) -> float:  # optional member: policies may use k delta
+        return self.k
+
+    def _hand(self) -> np.ndarray:
+        return self.s * U
+
+    def read_wrench(self) -> Wrench:
+        force = self.k * (self._hand() - self.target.position) + WEIGHT
+        return Wrench(force + self.rng.normal(0.0, 0.05, 3), self.rng.normal(0.0, 0.005, 3))
+
+    def read_pose(self) -> Pose:
+        return Pose(self._hand(), self.target.orientation)
+
+    def commanded_pose(self) -> Pose:
+        return self.target
+
+    def command_pose(self, pose: Pose) -> None:
+        self.next = pose
+
+    def advance(self) -> None:
+        if self.next is not None:
+            self.target, self.next = self.next, None
+        pull = self.k * (float(self.target.position @ U) - self.s)  # spring force along U
+        if abs(pull) > self.friction:  # slides until the spring balances the friction
+            self.s += (abs(pull) - self.friction) / self.k * math.copysign(1.0, pull)
+
+    def hold(self) -> None:
+        self.held += 1
+        self.next = Pose(self._hand(), self.target.orientation)
+
+
+@pytest.mark.parametrize("offset", [-30.0, 20.0])
+def test_an_outside_robot_reaches_a_goal_without_simulator(offset: float) -> None:
+    robot = NumpyDrawer()
+    cfg = ExecutorConfig(goal_travel=0.2, workplane_normal=(0.0, 0.0, 1.0))
+    rec = Executor(robot, PolicyController(), cfg).run(d0(offset))  # type: ignore[arg-type]
+    assert rec.outcome == "success" and rec.reason.startswith("goal: travel")
+    assert robot.s >= 0.2 - 1e-9 and robot.held == 1
+    assert rec.peak_force < 60.0
+    final = np.array(rec.steps[-1].direction)
+    assert angle_deg(final, U) < 10.0  # the policy found the guide from the forces alone
+
+
+class Broken(FixedDirection):
+    """A controller that fails after two steps: a NaN direction or a 1 m step."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self.calls = 0
+
+    def next_direction(self, inp: ControlInput) -> np.ndarray:
+        self.calls += 1
+        if self.kind == "nan" and self.calls > 2:
+            return np.array([np.nan, 0.0, 0.0])
+        return inp.direction
+
+    def step_length(self, nominal: float) -> float:
+        return 1.0 if self.kind == "long" and self.calls > 2 else nominal
+
+
+@pytest.mark.parametrize("kind", ["nan", "long"])
+def test_a_bad_command_is_never_sent(kind: str) -> None:
+    robot = Holding()
+    rec = Executor(robot, Broken(kind), ExecutorConfig()).run(U)
+    assert rec.outcome == "bad_command" and rec.reason
+    assert robot.holds == 1
+    for a, b in zip(robot.commands, robot.commands[1:], strict=False):
+        assert np.all(np.isfinite(b.position))
+        assert np.linalg.norm(b.position - a.position) <= 0.01 + 1e-12
+
+
+def test_a_pose_glitch_is_not_acted_on() -> None:
+    @dataclass
+    class Glitchy(FakeGuide):
+        def read_pose(self) -> Pose:
+            p = super().read_pose()
+            if self.steps == HOLD + 3:  # one reading 50 cm off across the guide
+                return Pose(p.position + np.array([0.0, 0.5, 0.0]), p.orientation)
+            return p
+
+    robot = Glitchy()
+    rec = Executor(robot, ProjectionController(), ExecutorConfig(), monitor=robot).run(d0(20))
+    assert rec.outcome == "success"
+    assert rec.peak_force < 20.0  # the glitch never became a command
+    steps = [
+        np.linalg.norm(b.position - a.position)
+        for a, b in zip(robot.commands, robot.commands[1:], strict=False)
+    ]
+    assert max(steps) <= 0.03

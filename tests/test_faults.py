@@ -8,11 +8,14 @@ no success above the limit, a record every time, a named stop with a reason, hol
 
 from __future__ import annotations
 
+import functools
+
 import mujoco
 import numpy as np
 import pytest
 
-from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite, run_fault
+from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, FaultRun, fault_suite, run_fault
+from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim import hand
 from constraint_aware.sim.tasks import TASKS, task_config
@@ -37,6 +40,11 @@ FORCE_SENSOR, HAND_BODY, TCP_SITE, TORQUE_SENSOR, WRIST_SITE = (
 )
 
 
+@functools.cache
+def baseline(task: str) -> FaultRun:
+    return run_fault(task, "none", policy=POLICY)
+
+
 @pytest.mark.parametrize("fault", list(FAULTS))
 @pytest.mark.parametrize("task", TASK_NAMES)
 def test_no_fault_makes_the_executor_dangerous(task: str, fault: str) -> None:
@@ -46,8 +54,8 @@ def test_no_fault_makes_the_executor_dangerous(task: str, fault: str) -> None:
     if fault in EXPECTED:
         assert result.outcome == EXPECTED[fault], (task, fault, result.reason)
     if fault.startswith(("pose_glitch", "nan_pose")):
-        # a single bad pose is not acted on: the run goes on (no force from the glitch)
-        assert result.classification == "continued", (task, fault, result.reason)
+        # a single bad pose is not acted on: the run ends as the fault-free run does
+        assert result.outcome == baseline(task).outcome, (task, fault, result.reason)
 
 
 def test_quick_suite_counts() -> None:
@@ -112,3 +120,14 @@ def test_hand_weight_compensation_removes_the_weight_at_rest() -> None:
     )
     assert np.linalg.norm(w.force) < 0.01 * mass * 9.81
     assert np.linalg.norm(w.torque) < 1e-3  # about the tool point, with the weight at its COM
+
+
+@pytest.mark.parametrize("task", ["door-opening", "handle-rotating"])
+@pytest.mark.parametrize("controller", ["policy", "classical"])
+def test_a_wrong_sign_of_the_revolute_normal_is_corrected(task: str, controller: str) -> None:
+    """The workplane normal's sign comes from the hinge's side, not from the user: a normal of
+    the wrong sign no longer turns the hand backwards (the issue: 4/10 success, 129 deg off)."""
+    spec = RunSpec(task, controller, 15.0, overrides=(("workplane_normal", (0.0, 0.0, -1.0)),))
+    record, _ = run(spec)
+    assert record.success, record.reason
+    assert any("workplane_normal flipped" in n for n in record.notes)

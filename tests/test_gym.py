@@ -56,13 +56,11 @@ def rollout(env: gym.Env[Any, Any], seed: int, steps: int) -> list[Any]:
 
 
 def assert_same(a: list[Any], b: list[Any]) -> None:
+    from gymnasium.utils.env_checker import data_equivalence
+
     assert len(a) == len(b)
     for x, y in zip(a, b, strict=True):
-        if isinstance(x, tuple):
-            for u, v in zip(x, y, strict=True):
-                np.testing.assert_array_equal(u, v)
-        else:
-            np.testing.assert_array_equal(x, y)
+        assert data_equivalence(x, y, exact=True)
 
 
 def test_single_system_check_env_and_render() -> None:
@@ -125,3 +123,97 @@ def test_vector_twin_passes_gymnasiums_vector_checks() -> None:
     a.action_space.seed(0)
     act = a.action_space.sample()
     assert data_equivalence(a.step(act), b.step(act))
+
+
+# --- the five tasks ---------------------------------------------------------------------------
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_check_env_on_every_registered_id(env_id: str) -> None:
+    env = gym.make(env_id, render_mode="rgb_array")
+    check_env(env.unwrapped)  # also calls render()
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_same_seed_same_episode_on_every_registered_id(env_id: str) -> None:
+    kwargs: dict[str, Any] = {}
+    if env_id in TASK_ENV_IDS.values():
+        kwargs = {"offset_deg": (10.0, 40.0), "randomize": True}  # draws from np_random too
+    a = rollout(gym.make(env_id, **kwargs), 11, 8)
+    b = rollout(gym.make(env_id, **kwargs), 11, 8)
+    assert_same(a, b)
+    c = rollout(gym.make(env_id, **kwargs), 12, 8)
+    first = a[0]["direction"] if isinstance(a[0], dict) else a[0]
+    other = c[0]["direction"] if isinstance(c[0], dict) else c[0]
+    assert not np.array_equal(first, other)
+
+
+def test_task_step_is_one_executor_period_and_ends_with_the_executors_outcome() -> None:
+    env = gym.make("constraint_aware/DrawerOpening-v0", offset_deg=0.0)
+    obs, info = env.reset(seed=0)
+    assert info["outcome"] == "running"
+    record = env.unwrapped.executor.record  # type: ignore[attr-defined]
+    n0 = len(record.steps)
+    terminated = truncated = False
+    total = 0.0
+    while not (terminated or truncated):
+        obs, reward, terminated, truncated, info = env.step(obs["direction"])
+        total += float(reward)
+        n0 += 1
+        assert len(record.steps) == n0  # one executor control step per env step
+    assert terminated and not truncated
+    assert info["outcome"] == "success" and info["success"] is True
+    assert info["progress_fraction"] >= 1.0 and 0.8 < total <= info["progress_fraction"]
+    assert info["record"].outcome == "success"
+
+
+def test_task_action_is_the_next_direction_projected_on_the_workplane() -> None:
+    env = gym.make("constraint_aware/DoorOpening-v0")
+    obs, _ = env.reset(seed=0)
+    normal = np.asarray(env.unwrapped.executor.config.workplane_normal)  # type: ignore[attr-defined]
+    action = np.array([0.3, -0.2, 0.9], dtype=np.float32)
+    obs, *_ = env.step(action)
+    expected = action - (action @ normal) * normal
+    np.testing.assert_allclose(obs["direction"], expected / np.linalg.norm(expected), atol=1e-12)
+    assert abs(obs["direction"] @ normal) < 1e-12
+
+
+def test_task_force_limit_is_a_termination_and_timeout_a_truncation() -> None:
+    env = gym.make("constraint_aware/DrawerOpening-v0", offset_deg=75.0)
+    obs, _ = env.reset(seed=0)
+    terminated = truncated = False
+    while not (terminated or truncated):
+        obs, _, terminated, truncated, info = env.step(obs["direction"])  # never corrects
+    assert terminated and info["outcome"] == "force_limit"
+    env = gym.make("constraint_aware/DrawerOpening-v0", executor={"max_steps": 3})
+    obs, _ = env.reset(seed=0)
+    terminated = truncated = False
+    while not (terminated or truncated):
+        obs, _, terminated, truncated, info = env.step(obs["direction"])
+    assert truncated and not terminated and info["outcome"] == "timeout"
+
+
+def test_task_config_kwarg_takes_any_task() -> None:
+    from constraint_aware.sim.tasks import task_config
+
+    heavy = task_config("drawer-opening", object__mass=3.0)
+    env = gym.make("constraint_aware/DrawerOpening-v0", task_config=heavy)
+    env.reset(seed=0)
+    assert env.unwrapped.sim.task.object.mass == 3.0  # type: ignore[attr-defined]
+
+
+def test_task_rgb_array_frames() -> None:
+    env = gym.make(
+        "constraint_aware/HandleRotating-v0", render_mode="rgb_array", width=160, height=120
+    )
+    env.reset(seed=0)
+    frame = env.render()
+    assert isinstance(frame, np.ndarray) and frame.shape == (120, 160, 3) and frame.std() > 0
+
+
+def test_readme_one_liner() -> None:
+    code = (
+        "import constraint_aware, gymnasium as gym; "
+        "gym.make('constraint_aware/SingleSystem-v0'); "
+        "gym.make('constraint_aware/DoorOpening-v0', render_mode='rgb_array')"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=120)

@@ -131,6 +131,7 @@ def _real_robot_record() -> RunRecord:
             )
         )  # fmt: skip
     rec.finish("timeout", "step limit", None)
+    rec.threshold = math.nan  # a NaN in a run-level float field, too
     return rec
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from constraint_aware import policy as policy_module
 from constraint_aware.errors import InvalidInputError, PolicyFileError
 from constraint_aware.export.onnx import (
     INPUT_NAME,
@@ -44,8 +45,9 @@ def test_parity_on_10000_random_observations(
 def test_dynamic_batch_and_clip(policy: ConstraintAwarePolicy, model_path: Path) -> None:
     session = ort.InferenceSession(str(model_path), providers=["CPUExecutionProvider"])
     rng = np.random.default_rng(3)
+    n_obs = policy.layers[0][0].shape[1]
     for n in (1, 7, 256):
-        obs = rng.normal(scale=50.0, size=(n, 6)).astype(np.float32)  # far outside: clipped
+        obs = rng.normal(scale=50.0, size=(n, n_obs)).astype(np.float32)  # far out: clipped
         (action,) = session.run([OUTPUT_NAME], {INPUT_NAME: obs})
         assert action.shape == (n, 3)
         assert action.dtype == np.float32
@@ -65,7 +67,9 @@ def test_float32_graph_of_matmul_add_tanh_clip(policy: ConstraintAwarePolicy) ->
     assert inp.name == INPUT_NAME
     dims = inp.type.tensor_type.shape.dim
     assert dims[0].dim_param == "batch"
-    assert dims[1].dim_value == 6
+    assert (
+        dims[1].dim_value == policy.layers[0][0].shape[1] == len(policy.card["observation_layout"])
+    )
 
 
 def test_metadata_carries_the_card(policy: ConstraintAwarePolicy, model_path: Path) -> None:
@@ -79,9 +83,9 @@ def test_metadata_carries_the_card(policy: ConstraintAwarePolicy, model_path: Pa
 
 
 def test_layout_must_match_the_weights(policy: ConstraintAwarePolicy, tmp_path: Path) -> None:
-    bad = policy.with_card(dict(policy.card, observation_layout=list(OBSERVATION_LAYOUT[:5])))
-    with pytest.raises(PolicyFileError, match="observation_layout"):
-        export_onnx(bad, tmp_path / "bad.onnx")
+    with pytest.raises(PolicyFileError, match="observation_layout"):  # here or at with_card
+        bad_card = dict(policy.card, observation_layout=list(OBSERVATION_LAYOUT[:5]))
+        export_onnx(policy.with_card(bad_card), tmp_path / "bad.onnx")
     with pytest.raises(InvalidInputError, match="path"):
         export_onnx(policy, tmp_path / "policy.pb")
 
@@ -89,20 +93,24 @@ def test_layout_must_match_the_weights(policy: ConstraintAwarePolicy, tmp_path: 
 def test_input_size_comes_from_the_weights(tmp_path: Path) -> None:
     """A policy with more than 6 inputs (history, extra features) exports with its own size."""
     rng = np.random.default_rng(0)
-    layout = [*OBSERVATION_LAYOUT, "previous_action_x", "previous_action_y", "previous_action_z"]
+    # This version's named observations wider than 6, if it has any; else a plausible one.
+    wide = [list(x) for x in getattr(policy_module, "OBSERVATIONS", {}).values() if len(x) > 6]
+    layout = (
+        wide[0] if wide else [*OBSERVATION_LAYOUT, *(f"previous_{n}" for n in OBSERVATION_LAYOUT)]
+    )
     layers = [
-        (rng.normal(size=(16, 9)), rng.normal(size=16)),
+        (rng.normal(size=(16, len(layout))), rng.normal(size=16)),
         (rng.normal(size=(3, 16)), rng.normal(size=3)),
     ]
     try:
-        wide = ConstraintAwarePolicy(layers, {"observation_layout": layout})
+        wide_policy = ConstraintAwarePolicy(layers, {"observation_layout": layout})
     except PolicyFileError as exc:
         pytest.skip(f"this version's policy class takes 6 inputs only ({exc})")
-    path = export_onnx(wide, tmp_path / "wide.onnx")
+    path = export_onnx(wide_policy, tmp_path / "wide.onnx")
     assert read_onnx_metadata(path)["observation_layout"] == layout
     obs = random_observations(layout, 1000, rng)
-    assert obs.shape == (1000, 9)
-    assert onnx_parity(wide, path, n_observations=1000) <= 1e-5
+    assert obs.shape == (1000, len(layout))
+    assert onnx_parity(wide_policy, path, n_observations=1000) <= 1e-5
 
 
 def test_export_does_not_import_torch(tmp_path: Path) -> None:

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 from typing import Any
 
 import pytest
 
+from constraint_aware.bench.run import check_out_dir, run_bench
 from constraint_aware.control.executor import ExecutorConfig
-from constraint_aware.control.simulate import RunSpec
+from constraint_aware.control.settings import parse_settings
+from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.errors import CapError, ConfigError, InvalidInputError, UnknownNameError
 from constraint_aware.sim.hand import HandConfig
 from constraint_aware.sim.objects import ObjectConfig
@@ -44,6 +48,8 @@ EXECUTOR_BAD: list[tuple[str, Any]] = [
     ("torque_alpha", 0.0),
     ("max_lead", -0.01),
     ("stale_steps", 1),
+    ("torque_policy", "yes"),
+    ("predictive_force", 1),
     ("constraint_type", "spherical"),
     ("command_from", "guess"),
 ]
@@ -157,3 +163,97 @@ RUNSPEC_BAD: list[tuple[dict[str, Any], type[Exception]]] = [
 def test_bad_run_spec_fails_at_construction(fields: dict[str, Any], error: type[Exception]) -> None:
     with pytest.raises(error):
         RunSpec(**fields)
+
+
+# --- cap bench --out -----------------------------------------------------------------------
+def test_bench_refuses_a_directory_with_user_files(tmp_path: Path) -> None:
+    (tmp_path / "report.md").write_text("my notes\n")
+    with pytest.raises(CapError, match=str(tmp_path)):
+        run_bench(tmp_path, quick=True)
+    assert (tmp_path / "report.md").read_text() == "my notes\n"  # untouched
+    (tmp_path / "results.json").write_text("{not json")  # a corrupted or foreign results.json
+    with pytest.raises(CapError, match="--force"):
+        check_out_dir(tmp_path)
+    check_out_dir(tmp_path, force=True)  # the user said so
+
+
+def test_bench_accepts_new_empty_or_previous_bench_directories(tmp_path: Path) -> None:
+    check_out_dir(tmp_path / "new")
+    check_out_dir(tmp_path)
+    (tmp_path / "results.json").write_text(
+        json.dumps({"meta": {"quick": True, "paper_figures": {}}})
+    )
+    (tmp_path / "report.md").write_text("old report\n")
+    check_out_dir(tmp_path)
+    (tmp_path / "file").write_text("")
+    with pytest.raises(CapError, match="not a directory"):
+        check_out_dir(tmp_path / "file")
+
+
+# --- --set KEY=VALUE -------------------------------------------------------------------------
+def test_settings_map_dotted_keys_and_parse_values() -> None:
+    s = parse_settings(
+        [
+            "object.frictionloss=2",
+            "object.radius=0.08",
+            "hand.translational_stiffness=8000",
+            "executor.threshold=1",
+            "executor.goal_travel=2e-1",
+            "executor.predictive_force=false",
+            "executor.max_lead=none",
+            "force_limit=40",
+            "workplane_normal=0,1,0",
+        ]
+    )
+    assert dict(s.task_overrides) == {
+        "object__frictionloss": 2,
+        "object__radius": 0.08,
+        "hand__translational_stiffness": 8000,
+        "force_limit": 40,
+        "workplane_normal": (0, 1, 0),
+    }
+    assert dict(s.executor_overrides) == {
+        "threshold": 1,
+        "goal_travel": 0.2,
+        "predictive_force": False,
+        "max_lead": None,
+    }
+
+
+@pytest.mark.parametrize(
+    ("item", "match"),
+    [
+        ("objet.mass=3", "valid names: executor, hand, object"),
+        ("object.mas=3", "valid names: .*object.mass"),
+        ("executor.treshold=1", "executor.threshold"),
+        ("forcelimit=1", "force_limit"),
+        ("object=3", "unknown setting 'object'"),
+    ],
+)
+def test_unknown_settings_list_the_valid_ones(item: str, match: str) -> None:
+    with pytest.raises(UnknownNameError, match=match):
+        parse_settings([item])
+
+
+@pytest.mark.parametrize("items", [["object.mass"], ["=3"], ["force_limit=1", "force_limit=2"]])
+def test_malformed_settings_are_rejected(items: list[str]) -> None:
+    with pytest.raises(InvalidInputError):
+        parse_settings(items)
+
+
+def test_settings_reach_the_run_and_bad_values_fail_before_moving() -> None:
+    spec = RunSpec("drawer-opening", "fixed", 0.0).with_settings(
+        parse_settings(["max_steps=3", "executor.threshold=1", "object.mass=3"])
+    )
+    record, sim = run(spec)
+    assert record.outcome == "timeout" and record.n_steps == 3
+    assert record.threshold == 1.0
+    assert sim.task.object.mass == 3
+    bad = RunSpec("drawer-opening").with_settings(parse_settings(["executor.step_length=0.5"]))
+    with pytest.raises(ConfigError, match="step_length"):
+        run(bad)
+    bad = RunSpec("drawer-opening").with_settings(parse_settings(["object.mass=nan"]))
+    with pytest.raises(ConfigError, match=r"ObjectConfig\.mass"):
+        run(bad)
+    with pytest.raises(UnknownNameError):
+        RunSpec(overrides=(("executor__treshold", 1.0),))

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import importlib
 import json
 import math
 import os
@@ -116,6 +117,16 @@ def check_output(
         raise InvalidInputError(f"{flag} {path!r}: {parent} is not a directory")
 
 
+def require_extra(module: str, extra: str, what: str) -> None:
+    """Fail before any work when an optional extra's package is missing."""
+    try:
+        importlib.import_module(module)
+    except ImportError as exc:
+        raise CapError(
+            f"{what} needs the '{extra}' extra: pip install 'constraint-aware[{extra}]' ({exc})"
+        ) from exc
+
+
 def plot_suffixes() -> tuple[str, ...]:
     from matplotlib.backend_bases import FigureCanvasBase
 
@@ -127,10 +138,15 @@ def _add_json(p: argparse.ArgumentParser | argparse._ArgumentGroup, what: str) -
 
 
 def _add_policy(p: argparse.ArgumentParser) -> None:
+    from constraint_aware import policy
+
+    names: tuple[str, ...] = tuple(getattr(policy, "POLICY_NAMES", ()))
     p.add_argument(
         "--policy",
         metavar="NAME|FILE",
-        help="a shipped policy's name or a policy .npz (default: the shipped default policy)",
+        help="a shipped policy's name"
+        + (f" ({', '.join(names)})" if names else "")
+        + " or a policy .npz (default: the shipped default policy)",
     )
 
 
@@ -332,6 +348,12 @@ def _run_parser(p: argparse.ArgumentParser) -> None:
         metavar="PATH",
         help="render the run offscreen: .gif (Pillow) or .mp4 (the 'video' extra)",
     )
+    out.add_argument(
+        "--mcap",
+        metavar="PATH",
+        help="the run record as .mcap for Foxglove: tool poses, wrench and direction arrows "
+        "(the 'mcap' extra); written on failure",
+    )
     p.set_defaults(func=cmd_run, run_specs=specs)
 
 
@@ -342,6 +364,9 @@ def _check_run_outputs(args: argparse.Namespace) -> None:
         from constraint_aware.sim.render import check_video_path
 
         check_video_path(args.video)
+    check_output(args.mcap, "--mcap", (".mcap",))
+    if args.mcap:
+        require_extra("mcap.writer", "mcap", "--mcap")
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -393,6 +418,10 @@ def _write_run_outputs(args: argparse.Namespace, record: Any, frames: list[Any])
     if args.json:
         write_json(record.to_dict(), args.json)
     try:
+        if args.mcap:
+            from constraint_aware.control.mcap_export import write_mcap
+
+            write_mcap(record, args.mcap)
         if args.plot and record.steps:
             from constraint_aware.control.plots import plot_run
 
@@ -553,6 +582,9 @@ def _bench_parser(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="bench-out", help="output directory")
     p.add_argument("--workers", type=int, help="processes (default: the usable cores)")
     p.add_argument("--replot", metavar="DIR", help="redraw figures and report from DIR only")
+    p.add_argument(
+        "--force", action="store_true", help="write into --out even if it holds other files"
+    )
     _add_json(p, "results.json's content")
     p.set_defaults(func=cmd_bench)
 
@@ -569,7 +601,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.replot:
         report = replot(args.replot)
     else:
-        report = run_bench(args.out, quick=args.quick, workers=args.workers)
+        report = run_bench(args.out, quick=args.quick, workers=args.workers, force=args.force)
     human(args).print(
         Text(
             f"report: {report} (results.json and figures beside it); "
@@ -582,6 +614,50 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+# --- cap export-onnx --------------------------------------------------------------------------
+def _export_onnx_parser(p: argparse.ArgumentParser) -> None:
+    _add_policy(p)
+    p.add_argument("out", metavar="OUT.onnx", help="the ONNX model to write")
+    p.add_argument(
+        "--parity",
+        type=int,
+        default=10_000,
+        metavar="N",
+        help="check ONNX Runtime against the numpy policy on N random observations (0: skip)",
+    )
+    _add_json(p, "the model's path, metadata and parity")
+    p.set_defaults(func=cmd_export_onnx)
+
+
+def cmd_export_onnx(args: argparse.Namespace) -> int:
+    from constraint_aware.policy import ConstraintAwarePolicy
+
+    check_output(args.out, "OUT", (".onnx",))
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    if args.parity < 0:
+        raise InvalidInputError(f"--parity {args.parity}: must be >= 0")
+    require_extra("onnx", "onnx", "cap export-onnx")
+    if args.parity:
+        require_extra("onnxruntime", "onnx", "the parity check (--parity 0 skips it)")
+    from constraint_aware.export.onnx import export_onnx, onnx_parity, read_onnx_metadata
+
+    policy = ConstraintAwarePolicy.load(args.policy)
+    try:
+        path = export_onnx(policy, args.out)
+    except OSError as exc:
+        raise CapError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
+    result: dict[str, Any] = {"out": str(path), "metadata": read_onnx_metadata(path)}
+    line = f"wrote {path}"
+    if args.parity:
+        err = onnx_parity(policy, path, n_observations=args.parity)
+        result["parity"] = {"n_observations": args.parity, "max_abs_error": err}
+        line += f"; max |numpy - onnxruntime| over {args.parity:,} observations: {err:.2e}"
+    human(args).print(Text(line), soft_wrap=True)
+    if args.json:
+        write_json(result, args.json)
+    return EXIT_OK
+
+
 # --- parser -----------------------------------------------------------------------------------
 COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
     "bench": ("reproduce the paper's experiments as a report", _bench_parser),
@@ -590,6 +666,7 @@ COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
     "train": ("train the policy with PPO (needs the 'train' extra)", _train_parser),
     "eval": ("evaluate a policy beside the reference controllers", _eval_parser),
     "view": ("open MuJoCo's interactive viewer on a task", _view_parser),
+    "export-onnx": ("the policy as an ONNX model for C++ controllers", _export_onnx_parser),
 }
 
 

@@ -70,7 +70,9 @@ def _argument_kwargs(tp: Any, name: str) -> dict[str, Any]:
     origin = typing.get_origin(inner)
     if inner is bool:
         return {"action": argparse.BooleanOptionalAction}
-    if inner in (int, float, str):
+    if inner is str:
+        return {"type": str, "metavar": name.upper()}
+    if inner in (int, float):
         return {"type": inner, "metavar": inner.__name__.upper()}
     if origin is Literal:
         values = typing.get_args(inner)

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import time
 from pathlib import Path
 from typing import Any
@@ -16,7 +15,12 @@ from constraint_aware.bench.embodiment import for_bench as embodiment_for_bench
 from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite
 from constraint_aware.bench.figures import draw_all
 from constraint_aware.bench.report import write_report
-from constraint_aware.bench.sweep import SUITE_OFFSET_RANGE
+from constraint_aware.bench.sweep import (
+    SUITE_OFFSET_RANGE,
+    available_cpus,
+    dask_executor,
+    use_executor,
+)
 from constraint_aware.errors import CapError
 from constraint_aware.sim.tasks import TASKS, task_config
 
@@ -92,20 +96,38 @@ def check_out_dir(out_dir: Path, force: bool = False) -> None:
 
 
 def run_bench(
-    out: str | Path, quick: bool = False, workers: int | None = None, force: bool = False
+    out: str | Path,
+    quick: bool = False,
+    workers: int | None = None,
+    force: bool = False,
+    scheduler: str | None = None,
 ) -> Path:
     """Run everything (quick: the paper's experiments with few seeds) into `out`.
 
-    `out` must be new, empty or a previous bench's directory unless `force` (CapError)."""
+    `out` must be new, empty or a previous bench's directory unless `force` (CapError).
+    scheduler: a Dask scheduler's address, or "local" for a cluster of `workers` processes on
+    this machine; the sweeps' runs then go to that cluster (through its client's executor) and
+    `workers` is its thread count. The results do not depend on it.
+    """
+    check_out_dir(Path(out), force)  # before any run or connection
+    if scheduler is None:
+        return _run_bench(out, quick, workers)
+    with (
+        dask_executor(scheduler, local_workers=workers) as (executor, threads),
+        use_executor(executor),
+    ):
+        return _run_bench(out, quick, threads)
+
+
+def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
     start = time.perf_counter()
     cfg = ex.BenchConfig.for_mode(quick, workers)
     out_dir = Path(out)
-    check_out_dir(out_dir, force)
     out_dir.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {
         "meta": {
             "quick": quick,
-            "workers": cfg.workers or os.cpu_count() or 1,
+            "workers": cfg.workers or available_cpus(),
             "n_tasks": len(TASKS),
             "n_controllers": len(ex.CONTROLLERS),
             "controllers": list(ex.CONTROLLERS),

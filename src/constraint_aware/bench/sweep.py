@@ -1,19 +1,31 @@
-"""Many simulated runs at once: spec lists, a process pool, a progress bar, summaries."""
+"""Many simulated runs at once: spec lists, an executor, a progress bar, summaries.
+
+The runs go to any `concurrent.futures.Executor`: by default a local process pool sized from
+the CPUs this process may use; `dask_executor(address)` gives a Dask cluster's (a machine's
+worth of runs is not the limit). Results keep the order of the specs whatever order the runs
+finish in, so a sweep's numbers do not depend on where or how fast it ran.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
-from collections.abc import Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
-from typing import Any
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from contextvars import ContextVar
+from typing import Any, TypeVar
 
 import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from constraint_aware.control.simulate import RunSpec, run
+from constraint_aware.errors import CapError
 from constraint_aware.sim.tasks import TASKS, task_config
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 #: The paper's initial direction errors (sections 5.3-5.5) and the suite's ranges [deg].
 PAPER_OFFSETS = {
@@ -58,17 +70,117 @@ def _run_one(args: tuple[RunSpec, bool]) -> dict[str, Any]:
     return out
 
 
+def available_cpus() -> int:
+    """CPUs this process may run on: its affinity mask (a batch allocation's share of a large
+    node), else the machine's count."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:  # macOS and Windows have no affinity mask
+        return os.cpu_count() or 1
+
+
+def default_workers(n_runs: int) -> int:
+    """Local pool size for `n_runs` runs: the available CPUs, never more processes than runs."""
+    return max(1, min(available_cpus(), n_runs))
+
+
+#: The executor `run_many` uses when none is passed (set by `use_executor`).
+_CURRENT_EXECUTOR: ContextVar[Executor | None] = ContextVar("sweep_executor", default=None)
+
+
+@contextlib.contextmanager
+def use_executor(executor: Executor | None) -> Iterator[None]:
+    """Every `run_many` inside the block runs on `executor` (None: the local pool)."""
+    token = _CURRENT_EXECUTOR.set(executor)
+    try:
+        yield
+    finally:
+        _CURRENT_EXECUTOR.reset(token)
+
+
+#: `scheduler` value that starts a Dask cluster on this machine for the sweep.
+LOCAL_SCHEDULER = "local"
+
+
+@contextlib.contextmanager
+def dask_executor(
+    address: str, timeout_s: float = 30.0, local_workers: int | None = None
+) -> Iterator[tuple[Executor, int]]:
+    """(executor, total worker threads) of the Dask cluster whose scheduler is at `address`.
+
+    `address` "local" (LOCAL_SCHEDULER) starts a `distributed.LocalCluster` for the block:
+    `local_workers` single-threaded worker processes (default: the available CPUs). Needs the
+    `cluster` extra (`distributed`); a remote cluster's workers need this package installed.
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:
+        raise CapError(
+            "scheduler: running on a Dask cluster needs 'distributed': "
+            "pip install 'constraint-aware[cluster]'"
+        ) from exc
+    if local_workers is not None and local_workers < 1:
+        raise CapError(f"workers: a local cluster needs >= 1 worker, got {local_workers}")
+    with contextlib.ExitStack() as stack:
+        if address == LOCAL_SCHEDULER:
+            cluster = LocalCluster(
+                n_workers=local_workers or available_cpus(),
+                threads_per_worker=1,  # one MuJoCo run per process, as in the local pool
+                processes=True,
+                dashboard_address=":0",  # any free port: never collide with a running one
+            )
+            stack.enter_context(cluster)
+            address = cluster.scheduler_address
+        try:
+            client = Client(address, timeout=timeout_s, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise CapError(
+                f"scheduler: cannot reach a Dask scheduler at {address!r} ({exc})"
+            ) from exc
+        stack.callback(client.close)
+        try:
+            client.wait_for_workers(1, timeout=timeout_s)
+        except TimeoutError as exc:
+            raise CapError(
+                f"scheduler: no worker joined the cluster at {address!r} in {timeout_s} s"
+            ) from exc
+        threads = sum(client.nthreads().values())
+        with client.get_executor() as executor:
+            yield executor, threads
+
+
+def gather_in_order(
+    executor: Executor,
+    fn: Callable[[T], R],
+    jobs: Sequence[T],
+    on_done: Callable[[], None] | None = None,
+) -> list[R]:
+    """[fn(job) for job in jobs] computed on `executor`, in the jobs' order whatever order they
+    finish in; `on_done` is called as each finishes (progress)."""
+    futures = {executor.submit(fn, job): i for i, job in enumerate(jobs)}
+    done: dict[int, R] = {}
+    for future in as_completed(futures):
+        done[futures[future]] = future.result()
+        if on_done is not None:
+            on_done()
+    return [done[i] for i in range(len(jobs))]
+
+
 def run_many(
     specs: Sequence[RunSpec],
     workers: int | None = None,
     keep_steps: bool = False,
     label: str = "runs",
     quiet: bool = False,
+    executor: Executor | None = None,
 ) -> list[dict[str, Any]]:
-    """Run every spec (in a process pool when workers > 1); results keep the input order."""
-    workers = workers or os.cpu_count() or 1
+    """Run every spec; results keep the input order.
+
+    On `executor` if given, else on the one set by `use_executor`, else in a local process pool
+    of `workers` processes (default: `default_workers`); one worker runs them in this process.
+    """
+    executor = executor or _CURRENT_EXECUTOR.get()
     jobs = [(s, keep_steps) for s in specs]
-    results: list[dict[str, Any]] = []
     with Progress(
         TextColumn(f"[bold]{label}[/]"),
         BarColumn(),
@@ -78,16 +190,21 @@ def run_many(
         disable=quiet,
     ) as progress:
         task = progress.add_task(label, total=len(jobs))
-        if workers <= 1:
+
+        def advance() -> None:
+            progress.advance(task)
+
+        if executor is not None:
+            return gather_in_order(executor, _run_one, jobs, advance)
+        n_workers = workers or default_workers(len(jobs))
+        if n_workers <= 1:
+            results = []
             for job in jobs:
                 results.append(_run_one(job))
-                progress.advance(task)
-        else:
-            with ProcessPoolExecutor(max_workers=workers) as pool:
-                for res in pool.map(_run_one, jobs, chunksize=4):
-                    results.append(res)
-                    progress.advance(task)
-    return results
+                advance()
+            return results
+        with ProcessPoolExecutor(max_workers=min(n_workers, len(jobs))) as pool:
+            return gather_in_order(pool, _run_one, jobs, advance)
 
 
 def success_table(results: Sequence[dict[str, Any]]) -> dict[str, dict[str, dict[str, Any]]]:

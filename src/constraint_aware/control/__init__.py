@@ -1,0 +1,36 @@
+"""The executor and what it needs from a robot; none of these names imports MuJoCo.
+
+The simulated run (`constraint_aware.control.simulate`) is imported from its module: it
+brings in the simulator.
+"""
+
+from constraint_aware.control.controllers import (
+    CONTROLLERS,
+    ControlInput,
+    DirectionController,
+    make_controller,
+)
+from constraint_aware.control.executor import Executor, ExecutorConfig, command_jump_bound
+from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord, StepRecord
+from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench
+from constraint_aware.control.settings import Settings, parse_settings
+
+__all__ = [
+    "CONTROLLERS",
+    "OUTCOMES",
+    "OUTCOME_MEANINGS",
+    "ControlInput",
+    "DirectionController",
+    "Executor",
+    "ExecutorConfig",
+    "Pose",
+    "Robot",
+    "RunRecord",
+    "Settings",
+    "StepRecord",
+    "TaskMonitor",
+    "Wrench",
+    "command_jump_bound",
+    "make_controller",
+    "parse_settings",
+]

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.controllers import ControlInput, DirectionController, project_on_plane
@@ -68,6 +69,15 @@ REANCHOR_LIMIT_STEPS = 2.0
 #: over this many steps, times 1.5) predicts the next step's force.
 FORCE_RATE_WINDOW = 3
 FORCE_RATE_SAFETY = 1.5
+#: The hand lags its moving target: at the end of a period the simulated arm (damping ratio 2)
+#: reads up to ~0.75 step lengths of deflection as force it does not feel (k |deflection| -
+#: |F| is at most 14.9 N for 20 N step forces over the five tasks, and at most 7.3 N above
+#: 30 N). The arm's force estimate subtracts this many step forces.
+ARM_FORCE_LAG_STEPS = 0.75
+#: When the arm's force estimate exceeds the sensor's |F| by more than this many step forces,
+#: the arm and the sensor disagree: stop `not_following` (in normal simulated runs the
+#: estimate never exceeds |F|; a frozen arm reaches this after ~2 ignored commands).
+ARM_FORCE_DISAGREEMENT_STEPS = 0.5
 #: Start-of-run self-check (`Executor._self_check`): only moves with |F| above the dead band and
 #: this [N] count, deflection changes above this [m] count, and a verdict needs this many moves.
 SELF_CHECK_MIN_FORCE = 2.0
@@ -97,8 +107,9 @@ class ExecutorConfig:
     contact_force: float = 1.0  # [N] without hand contact sensing: |F| above this once means
     lost_contact_force: float = 0.25  # contact was made, and |F| below this means none
     lost_contact_steps: int = 5  # stop after this many steps without contact
-    offset_samples: int = 10  # control periods held before moving, one wrench reading each,
-    # averaged into F_d (>= 2: their spread is the sensor noise). Costs this many periods.
+    offset_samples: int = 10  # wrench readings averaged into F_d, one per control period
+    # while holding before moving (>= 2: their spread is the sensor noise). Cost: the hand
+    # holds offset_samples - 1 extra periods (0.9 s at 10 samples of 100 ms) before moving.
     ramp_up_steps: int = 0  # >0: the first steps move 1/(n+1), 2/(n+1)... of step_length: an
     # acceleration limit that keeps the object's inertial force small (assumption 2)
     torque_policy: bool = False  # fixed-orientation grasp: rotate by the torque policy's w
@@ -122,7 +133,7 @@ class ExecutorConfig:
     follow_patience: int = 5  # steps held at the lead bound before `not_following`
     stale_steps: int = 3  # identical wrench samples in a row that stop the run (>= 2)
     predictive_force: bool = True  # shorten or refuse a step whose predicted |F| passes the
-    # limit (prediction: the whole move blocked, |F - k l d| with k the robot's stiffness or
+    # limit (prediction: the whole move blocked, |F| + k l with k the robot's stiffness or
     # FORCE_RATE_SAFETY x the largest recent force change per metre)
     min_step_fraction: float = 0.2  # a step the prediction shortens below this fraction of
     # step_length is refused (stop `force_limit`)
@@ -132,6 +143,9 @@ class ExecutorConfig:
         name = "ExecutorConfig."
         check_choice(name + "constraint_type", self.constraint_type, ("prismatic", "revolute"))
         check_choice(name + "command_from", self.command_from, ("measured", "target"))
+        for flag in ("torque_policy", "predictive_force"):
+            if not isinstance(getattr(self, flag), bool):
+                raise ConfigError(name + flag, getattr(self, flag), "true or false")
         if self.workplane_normal is not None:
             normal = check_unit_vector(name + "workplane_normal", self.workplane_normal)
             object.__setattr__(self, "workplane_normal", normal)
@@ -201,6 +215,24 @@ def command_jump_bound(config: ExecutorConfig) -> float:
     return config.step_length * (1.0 + REANCHOR_LIMIT_STEPS) * (1 + 1e-9)
 
 
+def orient_normal(
+    normal: ArrayLike, direction: ArrayLike, position: ArrayLike, hinge_point: ArrayLike
+) -> FloatArray:
+    """The workplane normal (3,) oriented so that moving along `direction` (3,) at `position`
+    (3,) [m] turns positively about it around the hinge through `hinge_point` (3,) [m]: the
+    sense paper 3.4.1's rotation and the torque policy assume. Raises InvalidInputError when
+    the direction points along the radius (no sense of rotation)."""
+    n = np.asarray(normal, dtype=float)
+    radial = np.asarray(position, dtype=float) - np.asarray(hinge_point, dtype=float)
+    sense = float(np.cross(radial, np.asarray(direction, dtype=float)) @ n)
+    if abs(sense) < 1e-9:
+        raise InvalidInputError(
+            "initial_direction: parallel to the radius from hinge_point; cannot orient the "
+            "workplane normal"
+        )
+    return n if sense > 0 else -n
+
+
 @dataclass
 class _Run:
     """The state of one run between `start` and its end."""
@@ -226,6 +258,7 @@ class _Run:
     contact: bool = False
     quiet: int = 0
     last_force: FloatArray | None = None
+    arm_force: float = 0.0  # [N] |F| implied by the arm's deflection (lower bound)
     last_length: float = 0.0  # [m] length of the last move
     force_rates: deque[float] = field(default_factory=lambda: deque(maxlen=FORCE_RATE_WINDOW))
     check_along: list[float] = field(default_factory=list)  # self-check: F.d / |F| per move
@@ -380,6 +413,24 @@ class Executor:
             return self._finish(
                 st, "force_limit", f"|F| = {magnitude:.1f} N > {cfg.force_limit:g} N"
             )
+        st.arm_force = self._arm_force(st, pose) if pose_ok else 0.0
+        if st.stiffness is not None and st.arm_force > magnitude + ARM_FORCE_DISAGREEMENT_STEPS * (
+            st.stiffness * cfg.step_length
+        ):
+            return self._finish(
+                st,
+                "not_following",
+                f"the arm's deflection implies |F| >= {st.arm_force:.1f} N but the sensor reads "
+                f"{magnitude:.1f} N: the arm is not following its target (frozen, e-stopped, "
+                f"clamped, or its pose lags) or the sensor reads low",
+            )
+        if st.arm_force > cfg.force_limit:
+            return self._finish(
+                st,
+                "force_limit",
+                f"the arm's deflection implies |F| >= {st.arm_force:.1f} N > "
+                f"{cfg.force_limit:g} N (the sensor reads {magnitude:.1f} N)",
+            )
         if self.monitor is not None and (reason := self.monitor.grasp_failure()):
             return self._finish(st, "grasp_lost", reason)
         grasp_contact = getattr(self.robot, "grasp_contact", None)
@@ -431,7 +482,7 @@ class Executor:
         if st.moves < cfg.ramp_up_steps:
             length *= (st.moves + 1) / (cfg.ramp_up_steps + 1)
         if cfg.predictive_force and length > 0:
-            allowed, predicted = self._force_bounded_length(st, force, d_next, length)
+            allowed, predicted = self._force_bounded_length(st, force, length)
             if allowed < length:
                 if allowed < cfg.min_step_fraction * cfg.step_length:
                     return self._finish(
@@ -549,25 +600,38 @@ class Executor:
         return True, ""
 
     def _force_bounded_length(
-        self, st: _Run, force: FloatArray, d: FloatArray, length: float
+        self, st: _Run, force: FloatArray, length: float
     ) -> tuple[float, float]:
-        """The longest move along d (<= length) whose predicted force stays at the limit, and
-        the force predicted for the full length. Prediction: the move fully blocked, so the
-        force becomes F - k l d (k: the robot's stiffness, else the recent force rate)."""
-        k = st.stiffness
-        if k is None and st.force_rates:
-            k = FORCE_RATE_SAFETY * max(st.force_rates)
+        """The longest move (<= length) whose predicted force stays at the limit, and the
+        force predicted for the full length.
+
+        Prediction, whatever the direction (a wrong sensor frame must not fool it): the force
+        so far, max(|F|, the arm's deflection estimate), plus k l (the move fully blocked),
+        with k the larger of the robot's stiffness and FORCE_RATE_SAFETY x the largest force
+        change per metre of the last FORCE_RATE_WINDOW moves (the hand's rotation and the
+        dynamics can add force faster than the stiffness alone; without a reported stiffness
+        there is no prediction before the second move)."""
+        rates = [FORCE_RATE_SAFETY * r for r in st.force_rates]
+        k = max([*rates, *([st.stiffness] if st.stiffness is not None else [])], default=None)
         if k is None or k <= 0:
             return length, math.nan
-        predicted = float(np.linalg.norm(force - k * length * d))
+        now = max(float(np.linalg.norm(force)), st.arm_force)
+        predicted = now + k * length
         if predicted <= self.config.force_limit:
             return length, predicted
-        fd = float(force @ d)
-        disc = fd * fd - float(force @ force) + self.config.force_limit**2
-        if disc <= 0:
-            return 0.0, predicted
-        allowed = max(0.0, (fd + math.sqrt(disc)) / k)
-        return min(length, allowed), predicted
+        return max(0.0, (self.config.force_limit - now) / k), predicted
+
+    def _arm_force(self, st: _Run, pose: Pose) -> float:
+        """[N] a lower bound on |F| from the arm alone: on a compliant arm F = k (measured -
+        commanded), less ARM_FORCE_LAG_STEPS step forces for the hand's lag behind a moving
+        target (which reads as deflection); 0 without a reported stiffness. It catches a
+        sensor that reads low (drift, wrong frame)."""
+        if st.stiffness is None or st.deflection0 is None:
+            return 0.0
+        deflection = pose.position - st.target.position - st.deflection0
+        k = st.stiffness
+        lag = ARM_FORCE_LAG_STEPS * k * self.config.step_length
+        return max(0.0, k * float(np.linalg.norm(deflection)) - lag)
 
     def _note_force(self, st: _Run, force: FloatArray, length: float) -> None:
         """Remember the force and the move for the force-rate estimate."""
@@ -688,22 +752,15 @@ class Executor:
     def _oriented_normal(
         self, normal: FloatArray, d: FloatArray, position: FloatArray, record: RunRecord
     ) -> FloatArray:
-        """Revolute + hinge_point: the normal about which d0 turns positively (the motion's
-        sense), flipped with a note when the configured sign is the other one."""
+        """Revolute + hinge_point: the normal about which d0 turns positively, with a note
+        when the configured sign was the other one."""
         cfg = self.config
         if cfg.constraint_type != "revolute" or cfg.hinge_point is None:
             return normal
-        radial = np.asarray(position, dtype=float) - np.asarray(cfg.hinge_point, dtype=float)
-        sense = float(np.cross(radial, d) @ normal)
-        if abs(sense) < 1e-9:
-            raise InvalidInputError(
-                "initial_direction: parallel to the radius from hinge_point; cannot orient "
-                "the workplane normal"
-            )
-        if sense < 0:
+        oriented = orient_normal(normal, d, position, cfg.hinge_point)
+        if float(oriented @ normal) < 0:
             record.notes.append("workplane_normal flipped: d0 turns negatively about it")
-            return -normal
-        return normal
+        return oriented
 
     def _hand_rotation(
         self,

@@ -351,6 +351,18 @@ def _nan_for_null(value: Any) -> Any:
     return value
 
 
+def _restore_nan(cls: type, values: dict[str, Any]) -> dict[str, Any]:
+    """`values` of dataclass `cls` with the nulls that stood for NaN back as NaN: in fields
+    typed float or list[float]; a field that may be None (`| None`) keeps a None itself."""
+    types = {f.name: str(f.type) for f in dataclasses.fields(cls)}
+    out = dict(values)
+    for name, value in values.items():
+        kind = types.get(name, "")
+        if kind.startswith(("float", "list[float]")) and not (value is None and "None" in kind):
+            out[name] = _nan_for_null(value)
+    return out
+
+
 def read_mcap(path: str | Path) -> RunRecord:
     """The run record stored in an MCAP file written by `write_mcap` (null read as NaN)."""
     _require_mcap()
@@ -361,15 +373,10 @@ def read_mcap(path: str | Path) -> RunRecord:
         meta = {m.name: m.metadata for m in reader.iter_metadata()}
     if RUN_METADATA not in meta:
         raise InvalidInputError(f"{path}: no '{RUN_METADATA}' metadata (not written by cap)")
-    run = json.loads(meta[RUN_METADATA]["record"])
-    nullable = {"handle_position", "admissible_direction", "rotation_rate"}
-    steps = []
-    for topic, _, _, msg in iter_mcap_messages(path):
-        if topic == "/step":
-            fields: dict[str, Any] = {
-                k: (v if k in nullable and v is None else _nan_for_null(v)) for k, v in msg.items()
-            }
-            steps.append(StepRecord(**fields))
-    for key in ("progress", "slip_m", "slip_deg"):
-        run[key] = _nan_for_null(run[key])
+    run = _restore_nan(RunRecord, json.loads(meta[RUN_METADATA]["record"]))
+    steps = [
+        StepRecord(**_restore_nan(StepRecord, msg))
+        for topic, _, _, msg in iter_mcap_messages(path)
+        if topic == "/step"
+    ]
     return RunRecord(steps=steps, **run)

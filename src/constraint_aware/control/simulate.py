@@ -10,9 +10,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from constraint_aware.control.controllers import CONTROLLERS, DirectionController, make_controller
-from constraint_aware.control.executor import Executor, ExecutorConfig
+from constraint_aware.control.executor import Executor, ExecutorConfig, orient_normal
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import Robot
+from constraint_aware.control.settings import Settings
 from constraint_aware.errors import (
     ConfigError,
     UnknownNameError,
@@ -58,6 +59,10 @@ class NoisySensorSim(ManipulationSim):
         )
 
 
+#: `RunSpec.overrides` keys with this prefix set ExecutorConfig fields (`executor__threshold`).
+EXECUTOR_PREFIX = "executor__"
+
+
 @dataclass(frozen=True)
 class RunSpec:
     """One simulated run."""
@@ -70,10 +75,30 @@ class RunSpec:
     torque_policy: bool | None = None  # None: on exactly for fixed-orientation grasps
     sensor_noise: float = 0.1  # [N] std of the force reading per axis
     sensor_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N]
-    overrides: tuple[tuple[str, object], ...] = ()  # task parameter overrides
+    overrides: tuple[tuple[str, object], ...] = ()  # task parameter overrides, and
+    # ExecutorConfig fields as `executor__FIELD`
     controller_params: tuple[tuple[str, float], ...] = ()  # e.g. classical gains
     robot: str = DEFAULT_ROBOT  # embodiment spec (sim.embodiment): "hook-hand", "jaco",
     # optionally with variants: "jaco:stiffness=5000,period=0.05"
+
+    def with_settings(self, settings: Settings) -> RunSpec:
+        """This spec with `--set` settings (control.settings.parse_settings) added: task
+        overrides as they are, ExecutorConfig fields as `executor__FIELD` overrides."""
+        executor = tuple((EXECUTOR_PREFIX + k, v) for k, v in settings.executor_overrides)
+        return dataclasses.replace(
+            self, overrides=(*self.overrides, *settings.task_overrides, *executor)
+        )
+
+    @property
+    def executor_overrides(self) -> dict[str, object]:
+        """The ExecutorConfig fields set through `executor__FIELD` overrides."""
+        n = len(EXECUTOR_PREFIX)
+        return {k[n:]: v for k, v in self.overrides if k.startswith(EXECUTOR_PREFIX)}
+
+    @property
+    def task_overrides(self) -> dict[str, object]:
+        """The TaskConfig overrides (`object__mass`, `force_limit`, ...)."""
+        return {k: v for k, v in self.overrides if not k.startswith(EXECUTOR_PREFIX)}
 
     def __post_init__(self) -> None:
         n = "RunSpec."
@@ -88,6 +113,10 @@ class RunSpec:
         for pair in (*self.overrides, *self.controller_params):
             if not (isinstance(pair, tuple) and len(pair) == 2 and isinstance(pair[0], str)):
                 raise ConfigError(n + "overrides", pair, "(name, value) pairs")
+        executor_fields = [f.name for f in dataclasses.fields(ExecutorConfig)]
+        for name in self.executor_overrides:
+            if name not in executor_fields:
+                raise UnknownNameError("executor setting", name, executor_fields)
         parse_robot(self.robot)  # an unknown embodiment or variant names the valid ones
 
 
@@ -109,7 +138,8 @@ def executor_config(task: TaskConfig, torque_policy: bool | None = None) -> Exec
 def build_task(spec: RunSpec) -> TaskConfig:
     rng = np.random.default_rng(spec.seed)
     task = randomized(spec.task, rng) if spec.randomize else task_config(spec.task)
-    return task.with_overrides(**dict(spec.overrides)) if spec.overrides else task
+    overrides = spec.task_overrides
+    return task.with_overrides(**overrides) if overrides else task
 
 
 def run(
@@ -138,14 +168,18 @@ def run(
         sim = make_embodiment(spec.robot, task, sensor_rng, spec.sensor_noise, bias)
     sim.reset()
     cfg = executor_config(task, spec.torque_policy)
-    if executor_overrides:
-        cfg = dataclasses.replace(cfg, **executor_overrides)  # type: ignore[arg-type]
+    changes = {**spec.executor_overrides, **(executor_overrides or {})}
+    if changes:
+        cfg = dataclasses.replace(cfg, **changes)  # type: ignore[arg-type]
     assert cfg.workplane_normal is not None
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     if initial_direction is not None:
         d0 = np.asarray(initial_direction, dtype=float)
     else:
         d0 = rotate_about(sim.admissible_direction(), normal, math.radians(spec.offset_deg))
+    if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
+        # the classical controller turns about this axis too: give it the oriented normal
+        normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
     rate = None
     if cfg.constraint_type == "revolute" and cfg.rotation_radius:
         rate = cfg.step_length / sim.control_period / cfg.rotation_radius  # w_d = v_d / r

@@ -72,6 +72,9 @@ def policy_metadata(policy: ConstraintAwarePolicy) -> dict[str, str]:
         "format": ONNX_FORMAT,
         "policy_name": str(name),
         "observation_layout": json.dumps(observation_layout(policy)),
+        # What the robot must supply each step beyond the graph's input (e.g. its step force
+        # k*delta for a magnitude observation), where this version's policy says so.
+        "inputs": json.dumps(list(getattr(policy, "inputs", ("force", "direction")))),
         "action_layout": json.dumps(["action_x", "action_y", "action_z"]),
         "action_scale": repr(float(policy.action_scale)),
         "direction_update": "d_next = (d + action_scale * action) / |d + action_scale * action|",
@@ -182,16 +185,20 @@ def read_onnx_metadata(path: str | Path) -> dict[str, Any]:
 
 def random_observations(layout: list[str], n: int, rng: np.random.Generator) -> np.ndarray:
     """(n, len(layout)) float32 test inputs: half of the rows as the policy sees them (unit or
-    zero force, unit direction, for the columns named so), half uniform in [-2, 2] (beyond the
-    valid range, so the final Clip is exercised too)."""
+    zero forces, unit directions, in every x/y/z column triple named `...force_unit_*` or
+    `...direction_*`, the previous step's too), half uniform in [-2, 2] (beyond the valid
+    range, so the final Clip is exercised too)."""
     obs = rng.uniform(-2.0, 2.0, size=(n, len(layout)))
     half = n // 2
-    for prefix in ("force_unit", "direction"):
-        cols = [layout.index(f"{prefix}_{a}") for a in "xyz" if f"{prefix}_{a}" in layout]
+    bases = {name[:-2] for name in layout if name.endswith(("_x", "_y", "_z"))}
+    for base in sorted(bases):
+        if not base.endswith(("force_unit", "direction")):
+            continue
+        cols = [layout.index(f"{base}_{a}") for a in "xyz" if f"{base}_{a}" in layout]
         if len(cols) == 3:
             v = rng.normal(size=(half, 3))
             v /= np.linalg.norm(v, axis=1, keepdims=True)
-            if prefix == "force_unit":
+            if base.endswith("force_unit"):
                 v[rng.random(half) < 0.1] = 0.0  # below the dead band the force is observed as 0
             obs[:half, cols] = v
     return obs.astype(np.float32)

@@ -69,16 +69,18 @@ class TrainConfig:
     target_angle_deg: float | None = None  # stop once an evaluation's mean angle <= this
     time_budget_s: float | None = None  # stop after this wall time
     env: EnvConfig = field(default_factory=EnvConfig)
-    resume: str | None = None  # SB3 model.zip to continue from, up to total_timesteps in all
-    tensorboard: str | None = None  # dir: evaluation metrics via SB3's logger (csv, tensorboard)
+    resume: str | None = None  # SB3 model.zip to continue from; trains to total_timesteps in all
+    tensorboard: str | None = None  # dir for TensorBoard events + progress.csv (SB3 logger)
 
     def __post_init__(self) -> None:
         if self.resume is not None and not Path(self.resume).is_file():
             raise InvalidInputError(
-                f"resume: no SB3 checkpoint at {self.resume!r} (a model.zip that cap train wrote)"
+                f"TrainConfig.resume: no SB3 checkpoint (model.zip of cap train) at {self.resume!r}"
             )
         if self.tensorboard is not None and Path(self.tensorboard).is_file():
-            raise InvalidInputError(f"tensorboard: {self.tensorboard!r} is a file, not a directory")
+            raise InvalidInputError(
+                f"TrainConfig.tensorboard: {self.tensorboard!r} is a file, not a directory"
+            )
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)

@@ -1,0 +1,305 @@
+"""The five simulated tasks as Gymnasium environments, one executor control period per step."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from constraint_aware.control.controllers import ControlInput, project_on_plane
+from constraint_aware.control.executor import Executor
+from constraint_aware.control.record import RunRecord
+from constraint_aware.control.simulate import NoisySensorSim, executor_config
+from constraint_aware.envs.single_system import check_render_mode
+from constraint_aware.errors import InvalidInputError
+from constraint_aware.geometry import FloatArray, rotate_about, unit
+from constraint_aware.sim.tasks import TaskConfig, randomized, task_config
+from constraint_aware.spatial import Pose, Wrench
+
+RENDER_MODES: tuple[str, ...] = ("rgb_array",)
+TIMEOUT = "timeout"  # the executor's outcome for max_steps: a truncation, not a termination
+
+
+class _ActionController:
+    """The executor's direction controller whose answer is the agent's action."""
+
+    name = "gymnasium"
+
+    def __init__(self) -> None:
+        self.direction = np.zeros(3)  # d_t (3,) unit, as the executor holds it
+        self.action: FloatArray | None = None
+        self.calls = 0  # times the executor asked for a direction
+
+    def reset(self, direction: FloatArray) -> None:
+        self.direction = np.asarray(direction, dtype=float).copy()
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        self.calls += 1
+        # the first move (during reset) keeps d0, as every controller does below the dead
+        # band, where |F - F_d| is at rest
+        proposed = inp.direction if self.action is None else self.action
+        d = project_on_plane(unit(np.asarray(proposed, dtype=float)), inp.workplane_normal)
+        if not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-6:
+            d = inp.direction  # a zero action, or one along the workplane normal: keep d_t
+        self.direction = np.asarray(d, dtype=float).copy()
+        return self.direction
+
+    def step_length(self, nominal: float) -> float:
+        return nominal
+
+    def hand_rotation(self) -> None:
+        return None  # the executor's rule (paper 3.4.1, or the torque policy)
+
+
+class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
+    """A simulated task (drawer, plate, pole, door, handle) driven by your direction policy.
+
+    The hand grasps the object; each `step` is one 100 ms control period of the robot-agnostic
+    `Executor` (constraint_aware.control), with your action as its direction controller. The
+    executor does everything else it does for `cap run`: the F_d tare, the workplane
+    projection, the hand rotation on revolute joints (paper 3.4.1, or the torque policy on
+    fixed-orientation grasps), the 1 cm move and every safety stop.
+
+    Observation (dict, world frame):
+        "wrench" (6,): tared force F = F_s - F_d [N] and torque tau - tau_d [N m] at the wrist;
+        "position" (3,) [m] and "orientation" (4,) (quaternion x, y, z, w) of the tool point;
+        "direction" (3,): the current motion direction d_t (unit, in the workplane).
+    Action (3,) in [-1, 1]: the next direction d_{t+1} (world frame). The executor normalizes
+        it and projects it on the task's workplane; a zero action, or one along the workplane
+        normal, keeps d_t. `(F/|F|, d)` from the observation is what the paper's policy reads.
+    Reward: the period's progress as a fraction of the task's goal (a successful episode
+        collects about 1) minus |F| / force_limit / max_steps (constraint force, as the
+        training reward penalizes it; at most 1 over a whole episode held at the limit).
+    Episode: `reset` grasps, samples F_d over the first periods with the hand held, and makes
+        the first 1 cm move along d0 (below the dead band every controller keeps d0 there).
+        The episode ends when the executor stops: `terminated` on success or any safety stop
+        (force limit, lost grasp or contact, non-finite readings...), `truncated` on its
+        timeout (the task's max_steps). The reading that ends a run is acted on in the next
+        `step`, whose action is then not used.
+    info: "outcome" ("running" or the executor's outcome), "reason", "success", "progress" [m
+        or rad], "progress_fraction" (of the goal), "slip_m" [m], "slip_deg" [deg],
+        "force_norm" [N]; at the end also "record", the executor's full `RunRecord`.
+
+    Keywords (gym.make(id, ...)):
+        task_config: any `TaskConfig` (e.g. `sim.tasks.task_config("door-opening",
+            object__mass=3)`) instead of the registered task's preset;
+        offset_deg: initial direction error about the workplane normal [deg]: a number, or
+            (low, high) for |offset| ~ U(low, high) with a random sign (default 30);
+        randomize: draw friction, mass and damping per episode (sim.tasks.randomized);
+        sensor_noise: [N] std of the force reading per axis (default 0.1, as `cap run`);
+        torque_policy: None (on exactly for fixed-orientation grasps), True or False;
+        executor: ExecutorConfig fields to override (e.g. {"threshold": 2.0});
+        render_mode: None or "rgb_array" (offscreen MuJoCo, sim.render.SceneRenderer),
+            width and height [px] of the frames.
+    Randomness comes only from `self.np_random` (seed it with `reset(seed=...)`).
+    """
+
+    metadata: dict[str, Any] = {"render_modes": list(RENDER_MODES), "render_fps": 10}  # noqa: RUF012
+
+    def __init__(
+        self,
+        task: str = "drawer-opening",
+        task_config: TaskConfig | None = None,
+        offset_deg: float | tuple[float, float] = 30.0,
+        randomize: bool = False,
+        sensor_noise: float = 0.1,
+        torque_policy: bool | None = None,
+        executor: dict[str, Any] | None = None,
+        render_mode: str | None = None,
+        width: int = 480,
+        height: int = 360,
+    ) -> None:
+        check_render_mode(render_mode, RENDER_MODES)
+        self._base = task_config if task_config is not None else _preset(task)
+        if randomize and task_config is not None:
+            raise InvalidInputError(
+                "randomize draws from a named task's preset; not with task_config"
+            )
+        if isinstance(offset_deg, tuple | list):
+            low, high = (float(v) for v in offset_deg)
+            if not 0.0 <= low <= high < 180.0:
+                raise InvalidInputError(
+                    f"offset_deg range ({low}, {high}): need 0 <= low <= high < 180"
+                )
+        elif not math.isfinite(float(offset_deg)):
+            raise InvalidInputError(f"offset_deg {offset_deg!r}: must be finite")
+        if not (math.isfinite(sensor_noise) and sensor_noise >= 0):
+            raise InvalidInputError(f"sensor_noise {sensor_noise!r} [N]: must be >= 0")
+        self.task_name = self._base.name
+        self.offset_deg = offset_deg
+        self.randomize = randomize
+        self.sensor_noise = float(sensor_noise)
+        self.torque_policy = torque_policy
+        self.executor_overrides = dict(executor or {})
+        self.executor_config = dataclasses.replace(
+            executor_config(self._base, torque_policy), **self.executor_overrides
+        )  # built once here so that invalid overrides fail at construction
+        self.render_mode = render_mode
+        self.width, self.height = width, height
+        vec = gym.spaces.Box(-np.inf, np.inf, (3,), np.float64)
+        self.observation_space = gym.spaces.Dict(  # type: ignore[assignment]
+            {
+                "wrench": gym.spaces.Box(-np.inf, np.inf, (6,), np.float64),
+                "position": vec,
+                "orientation": gym.spaces.Box(-1.0, 1.0, (4,), np.float64),
+                "direction": gym.spaces.Box(-1.0, 1.0, (3,), np.float64),
+            }
+        )
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+        self.sim: NoisySensorSim | None = None
+        self.executor: Executor | None = None
+        self._controller = _ActionController()
+        self._reading: tuple[Wrench, Pose] | None = None
+        self._record: RunRecord | None = None
+        self._renderer: Any = None
+
+    # --- episode ------------------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        super().reset(seed=seed)
+        rng = self.np_random
+        task = randomized(self.task_name, rng) if self.randomize else self._base
+        sim = NoisySensorSim(task, rng, self.sensor_noise)
+        sim.reset()
+        cfg = (
+            self.executor_config
+            if not self.randomize
+            else dataclasses.replace(
+                executor_config(task, self.torque_policy), **self.executor_overrides
+            )
+        )
+        assert cfg.workplane_normal is not None
+        offset = self._draw_offset(rng)
+        d0 = rotate_about(
+            sim.admissible_direction(), np.asarray(cfg.workplane_normal), math.radians(offset)
+        )
+        self._close_renderer()
+        self.sim = sim
+        self._controller = _ActionController()
+        self.executor = Executor(sim, self._controller, cfg, monitor=sim)
+        label = {
+            "task": task.name,
+            "controller": self._controller.name,
+            "offset_deg": offset,
+            "randomized": self.randomize,
+            "torque_policy": cfg.torque_policy,
+            "sensor_noise_N": self.sensor_noise,
+            "success_progress": task.success_progress,
+            "constraint_type": task.constraint_type,
+            "force_exertion_type": task.force_exertion_type,
+            "force_limit_N": task.force_limit,
+        }
+        self._record = self.executor.start(d0, label)
+        # F_d sampling holds the hand; it ends with the first move (along d0)
+        for _ in range(cfg.offset_samples + cfg.max_steps):  # bounded: the executor stops
+            if self._controller.calls > 0:
+                break
+            out = self.executor.step(sim.read_wrench(), sim.read_pose())
+            if isinstance(out, RunRecord):
+                break
+            sim.command_pose(out)
+            sim.advance()
+        self._reading = (sim.read_wrench(), sim.read_pose())
+        return self._observation(), self._info()
+
+    def step(
+        self, action: np.ndarray
+    ) -> tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]:
+        if self.executor is None or self.sim is None or self._reading is None:
+            raise InvalidInputError("TaskEnv.step: call reset() first")
+        record = self._record
+        assert record is not None
+        if record.finished:
+            raise InvalidInputError("TaskEnv.step: the episode has ended; call reset()")
+        before = self.sim.progress()
+        self._controller.action = np.asarray(action, dtype=float)
+        out = self.executor.step(*self._reading)
+        if not isinstance(out, RunRecord):
+            self.sim.command_pose(out)
+            self.sim.advance()
+            self._reading = (self.sim.read_wrench(), self.sim.read_pose())
+        obs = self._observation()
+        cfg = self.executor.config
+        force_norm = float(np.linalg.norm(obs["wrench"][:3]))
+        reward = (self.sim.progress() - before) / self.sim.task.success_progress
+        if math.isfinite(force_norm):
+            reward -= force_norm / cfg.force_limit / cfg.max_steps
+        finished = record.finished
+        truncated = finished and record.outcome == TIMEOUT
+        return obs, float(reward), finished and not truncated, truncated, self._info()
+
+    # --- observation and info -----------------------------------------------------------------
+    def _observation(self) -> dict[str, np.ndarray]:
+        assert self._reading is not None and self._record is not None
+        wrench, pose = self._reading
+        offset_f = np.asarray(self._record.force_offset, dtype=float)
+        offset_t = np.asarray(self._record.torque_offset, dtype=float)
+        tared = np.concatenate(
+            [np.asarray(wrench.force) - offset_f, np.asarray(wrench.torque) - offset_t]
+        )
+        return {
+            "wrench": np.nan_to_num(tared, nan=0.0),  # NaN only before F_d exists
+            "position": np.asarray(pose.position, dtype=np.float64).copy(),
+            "orientation": np.asarray(pose.orientation.as_quat(), dtype=np.float64),
+            "direction": self._controller.direction.astype(np.float64),
+        }
+
+    def _info(self) -> dict[str, Any]:
+        assert self.sim is not None and self._record is not None
+        record = self._record
+        slip_m, slip_deg = self.sim.slip()
+        progress = self.sim.progress()
+        info: dict[str, Any] = {
+            "outcome": record.outcome,
+            "reason": record.reason,
+            "success": record.success,
+            "progress": progress,
+            "progress_fraction": progress / self.sim.task.success_progress,
+            "slip_m": slip_m,
+            "slip_deg": slip_deg,
+            "force_norm": record.steps[-1].force_norm if record.steps else 0.0,
+        }
+        if record.finished:
+            info["record"] = record
+        return info
+
+    def _draw_offset(self, rng: np.random.Generator) -> float:
+        if isinstance(self.offset_deg, tuple | list):
+            low, high = self.offset_deg
+            sign = 1.0 if rng.random() < 0.5 else -1.0
+            return sign * float(rng.uniform(low, high))
+        return float(self.offset_deg)
+
+    # --- rendering ----------------------------------------------------------------------------
+    def render(self) -> np.ndarray | None:
+        if self.render_mode is None or self.sim is None:
+            return None
+        if self._renderer is None:
+            from constraint_aware.sim.render import SceneRenderer
+
+            self._renderer = SceneRenderer(
+                self.sim.model,
+                width=self.width,
+                height=self.height,
+                lookat=self.sim.task.object.handle_position,
+                distance=0.9,
+            )
+        frame: np.ndarray = self._renderer.frame(self.sim.data)
+        return frame
+
+    def _close_renderer(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def close(self) -> None:
+        self._close_renderer()
+        super().close()
+
+
+def _preset(task: str) -> TaskConfig:
+    return task_config(task)

@@ -1,0 +1,158 @@
+"""Sweeps on any executor: pool size from the CPU affinity, order-free results, Dask."""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from constraint_aware.bench import sweep
+from constraint_aware.bench.sweep import (
+    available_cpus,
+    dask_executor,
+    default_workers,
+    gather_in_order,
+    run_many,
+    suite_specs,
+    use_executor,
+)
+from constraint_aware.errors import CapError
+
+
+class LastInFirstOut(Executor):
+    """Runs the submitted calls in reverse order, on one thread, once submissions pause."""
+
+    def __init__(self, pause_s: float = 0.2) -> None:
+        self.pause_s = pause_s
+        self.pending: list[tuple[Future[Any], Callable[..., Any], tuple[Any, ...]]] = []
+        self.finished: list[Any] = []  # the arguments, in the order their calls finished
+        self.timer: threading.Timer | None = None
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future[Any]:
+        future: Future[Any] = Future()
+        self.pending.append((future, fn, args))
+        if self.timer is not None:
+            self.timer.cancel()
+        self.timer = threading.Timer(self.pause_s, self._drain)
+        self.timer.start()
+        return future
+
+    def _drain(self) -> None:
+        while self.pending:
+            future, fn, args = self.pending.pop()
+            result = fn(*args)
+            self.finished.append(args)
+            future.set_result(result)
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+def test_results_keep_the_spec_order_whatever_order_runs_finish() -> None:
+    executor = LastInFirstOut()
+    jobs = list(range(12))
+    assert gather_in_order(executor, _square, jobs) == [x * x for x in jobs]
+    assert [a[0] for a in executor.finished] == jobs[::-1]  # they did finish in reverse
+
+
+@pytest.fixture(scope="module")
+def specs() -> list[sweep.RunSpec]:
+    """Four suite runs: a prismatic and a revolute task, the policy and the classical
+    controller, randomized (friction, mass, damping, offset)."""
+    return suite_specs(1, ("policy", "classical"), tasks=("drawer-opening", "door-opening"))
+
+
+@pytest.fixture(scope="module")
+def serial(specs: list[sweep.RunSpec]) -> list[dict[str, Any]]:
+    return run_many(specs, workers=1, quiet=True)
+
+
+def test_any_executor_gives_the_serial_results(
+    specs: list[sweep.RunSpec], serial: list[dict[str, Any]]
+) -> None:
+    assert [r["spec"]["task"] for r in serial] == [s.task for s in specs]
+    assert run_many(specs, executor=LastInFirstOut(), quiet=True) == serial
+    with ThreadPoolExecutor(max_workers=2) as pool, use_executor(pool):
+        assert run_many(specs, quiet=True) == serial  # the executor set for the block
+
+
+def test_default_pool_size_from_the_cpu_affinity(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A 4-CPU batch allocation on a 128-core node.
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(4)), raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 128)
+    assert available_cpus() == 4
+    assert default_workers(100) == 4
+    assert default_workers(3) == 3  # never more processes than runs
+    assert default_workers(0) == 1
+    monkeypatch.delattr(os, "sched_getaffinity", raising=False)  # macOS, Windows
+    assert available_cpus() == 128
+
+
+def test_run_many_sizes_its_pool_by_default(
+    monkeypatch: pytest.MonkeyPatch, specs: list[sweep.RunSpec], serial: list[dict[str, Any]]
+) -> None:
+    sizes: list[int] = []
+
+    class RecordingPool(ThreadPoolExecutor):  # threads: the size is what is checked here
+        def __init__(self, max_workers: int) -> None:
+            sizes.append(max_workers)
+            super().__init__(max_workers=max_workers)
+
+    monkeypatch.setattr(sweep, "ProcessPoolExecutor", RecordingPool)
+    monkeypatch.setattr(sweep, "available_cpus", lambda: 64)
+    assert run_many(specs[:3], quiet=True) == serial[:3]
+    assert sizes == [3]
+
+
+def test_dask_local_cluster_gives_the_local_pool_results(
+    specs: list[sweep.RunSpec], serial: list[dict[str, Any]]
+) -> None:
+    distributed = pytest.importorskip("distributed")
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0"
+        ) as cluster,
+        dask_executor(cluster.scheduler_address) as (executor, threads),
+    ):
+        assert threads == 1
+        assert run_many(specs, executor=executor, quiet=True) == serial
+
+
+def test_unreachable_scheduler_is_a_clear_error() -> None:
+    pytest.importorskip("distributed")
+    with (
+        pytest.raises(CapError, match="scheduler"),
+        dask_executor("tcp://127.0.0.1:9", timeout_s=1.0),
+    ):
+        pass
+
+
+def test_run_bench_sends_its_sweeps_to_the_scheduler(
+    monkeypatch: pytest.MonkeyPatch,
+    tmp_path: Path,
+    specs: list[sweep.RunSpec],
+    serial: list[dict[str, Any]],
+) -> None:
+    """run_bench(scheduler="local") starts a LocalCluster and every run_many inside goes there
+    (the whole quick bench twice is too slow for a test: benchmarks/sweep_dask.py does it)."""
+    pytest.importorskip("distributed")
+    from constraint_aware.bench import run as bench_run
+
+    seen: dict[str, Any] = {}
+
+    def sweeps_only(out: str | Path, quick: bool, workers: int | None) -> Path:
+        seen["executor"] = type(sweep._CURRENT_EXECUTOR.get()).__name__
+        seen["workers"] = workers
+        seen["runs"] = run_many(specs[:2], quiet=True)
+        return Path(out)
+
+    monkeypatch.setattr(bench_run, "_run_bench", sweeps_only)
+    bench_run.run_bench(tmp_path / "bench", quick=True, workers=1, scheduler=sweep.LOCAL_SCHEDULER)
+    assert seen == {"executor": "ClientExecutor", "workers": 1, "runs": serial[:2]}
+    assert sweep._CURRENT_EXECUTOR.get() is None  # the local pool again after the bench
