@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import mujoco
 import numpy as np
 import pytest
@@ -139,9 +141,10 @@ def test_grasp_holds_under_a_scripted_pull(name: str) -> None:
     task = task_config(name)
     sim = JacoSim(task)
     sim.reset()
-    record = Executor(sim, _TrueDirection(sim), executor_config(task), monitor=sim).run(
-        sim.admissible_direction()
-    )
+    # the subject is the grasp: the executor's start-of-run self-check assumes a quasi-static
+    # arm (F = k x deflection), which the lagging Jaco is not (README, "Second embodiment")
+    cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
+    record = Executor(sim, _TrueDirection(sim), cfg, monitor=sim).run(sim.admissible_direction())
     assert record.outcome == "success", record.reason
     assert record.slip_m < 0.015
 

@@ -12,9 +12,10 @@ limit). The arm base is placed per task from the object's pose (`arm_base`).
 Control. An operational-space impedance controller on MuJoCo's Jacobian and mass matrix runs
 every 2 ms substep (`OscConfig`):
 
-    tau = J^T (K e - D v) + qfrc_bias + N^T tau_posture,  clipped to the motors' limits
+    tau = J^T (K e - D (v - v_d)) + qfrc_bias + N^T tau_posture,  within the motors' limits
 
-e: (position, rotation-vector) error of the tool point from its setpoint, v = J qdot; K =
+e: (position, rotation-vector) error of the tool point from its setpoint, v = J qdot, v_d the
+setpoint's velocity while the Cartesian interpolator moves it (zero at rest); K =
 diag(k_t I3, k_r I3); D = 2 zeta sqrt(K) sqrt(diag Lambda), Lambda = (J M^-1 J^T)^-1 the
 task-space inertia from `mj_solveM` (each axis damped at `damping_ratio` of its own apparent
 mass); qfrc_bias compensates gravity (arm, hand) and Coriolis terms; N^T = I - J^T Lambda J M^-1
@@ -278,6 +279,7 @@ class JacoSim(Embodiment):
         self._setpoint = Pose(np.zeros(3), Rotation.identity())
         self._sp_pos = np.zeros(3)
         self._sp_mat = np.eye(3)
+        self._sp_vel = np.zeros(6)  # [m/s, rad/s] the setpoint's velocity (interpolator)
         self._posture = np.zeros(6)
         self._jacp = np.zeros((3, m.nv))
         self._jacr = np.zeros((3, m.nv))
@@ -318,7 +320,9 @@ class JacoSim(Embodiment):
         err[:3] = self._sp_pos - d.site_xpos[self._tcp_site]
         err[3:] = rotvec(self._sp_mat @ d.site_xmat[self._tcp_site].reshape(3, 3).T)
         qvel = d.qvel[dofs]
-        wrench = self._k * err - self._damp_gain * np.sqrt(lam.diagonal()) * (j_arm @ qvel)
+        # damping on the velocity error: a moving setpoint is tracked without a damping lag
+        vel_err = j_arm @ qvel - self._sp_vel
+        wrench = self._k * err - self._damp_gain * np.sqrt(lam.diagonal()) * vel_err
         # null space: posture spring and joint-limit repulsion, projected so that they do not
         # disturb the tool point (dynamically consistent: N^T = I - J^T Lambda J M^-1)
         q = d.qpos[self._qpos_slice]
@@ -351,6 +355,9 @@ class JacoSim(Embodiment):
     def translational_stiffness(self) -> float:
         """[N/m] the OSC's Cartesian stiffness (each axis)."""
         return self.osc.translational_stiffness
+
+    def _set_setpoint_velocity(self, twist: FloatArray) -> None:
+        self._sp_vel = np.asarray(twist, dtype=float)
 
     def _apply_setpoint(self, pose: Pose) -> None:
         self._setpoint = pose

@@ -85,6 +85,11 @@ class SimulatedRobot(ABC):
         """Advance the physics `n` substeps (override to run a control law per substep)."""
         mujoco.mj_step(self.model, self.data, nstep=n)
 
+    def _set_setpoint_velocity(self, twist: FloatArray) -> None:
+        """(6,) [m/s, rad/s] the interpolator's setpoint velocity (world frame) while it moves;
+        zeros once it rests. Override when the controller damps relative to it."""
+        del twist  # servo-driven joints (the hook hand's) damp against absolute velocity
+
     # --- Robot protocol ----------------------------------------------------------------------
     @property
     def control_period(self) -> float:
@@ -160,12 +165,18 @@ class SimulatedRobot(ABC):
         fractions = [i / RAMP_CHUNKS for i in range(1, RAMP_CHUNKS + 1)]
         orientations = slerp(fractions)  # one call: slerp is slow per call, not per rotation
         n = round(self.control_period_s / TIMESTEP / RAMP_CHUNKS)
+        duration = RAMP_CHUNKS * n * TIMESTEP  # [s] over which the setpoint travels
+        turn = (goal.orientation * start.orientation.inv()).as_rotvec()
+        self._set_setpoint_velocity(
+            np.concatenate([goal.position - start.position, turn]) / duration
+        )
         for i, f in enumerate(fractions, start=1):
             self._apply_setpoint(
                 Pose(start.position + f * (goal.position - start.position), orientations[i - 1])
             )
             if i < RAMP_CHUNKS:
                 self._step(n)
+        self._set_setpoint_velocity(np.zeros(6))
         self._step(n - FILTER_STEPS)
         self._settle_filter()
         self._next_pose = None
