@@ -1,8 +1,10 @@
 """Regenerate the example demonstrations (seeded): python examples/make_demos.py
 
 Each is a synthetic one-shot demonstration with 5 mm tracking noise, tremor, a few tracker
-glitches and a varying speed, placed where the matching simulated task has its handle, so
-that `cap lfo examples/<demo> --execute` runs the estimated skill on that task.
+glitches and a varying speed, placed where the matching paper task has its handle.
+`cap lfo examples/<demo> --execute` builds the simulated object where the demonstration says
+(lfo/scene.py) and runs the estimated skill on it; examples/move_demos.py moves, mirrors and
+scales these demonstrations (examples/moved/).
 """
 
 from __future__ import annotations

@@ -333,6 +333,35 @@ def test_bench_force_flag_reaches_run_bench(
     assert json.loads((tmp_path / "b.json").read_text()) == {"x": None}  # strict JSON
 
 
+def test_run_set_reaches_task_and_executor_fields(tmp_path: Path) -> None:
+    out = cap(
+        "run", "drawer-opening", "--set", "force_limit=5", "--set", "executor.max_steps=3",
+        "--json", str(tmp_path / "r.json"),
+    )  # fmt: skip
+    assert out.returncode == 1, out.stderr  # a 5 N limit stops the run
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert data["outcome"] == "force_limit" and data["label"]["force_limit_N"] == 5
+    out = cap("run", "drawer-opening", "--set", "object.nosuch=1")
+    assert out.returncode == 2 and "object.mass" in out.stderr  # lists the valid keys
+    out = cap("run", "drawer-opening", "--set", "executor.max_steps=2", "--offset", "0")
+    assert out.returncode == 1 and "timeout" in out.stdout
+
+
+def test_bench_scheduler_reaches_run_bench(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    pytest.importorskip("distributed")
+    import constraint_aware.bench.run as bench_run
+
+    seen: dict[str, object] = {}
+
+    def fake_run_bench(out: str, **kwargs: object) -> Path:
+        seen.update(kwargs)
+        return Path(out) / "report.md"
+
+    monkeypatch.setattr(bench_run, "run_bench", fake_run_bench)
+    assert main(["bench", "--out", str(tmp_path), "--scheduler", "local", "--workers", "2"]) == 0
+    assert seen["scheduler"] == "local" and seen["workers"] == 2
+
+
 def test_view_without_display_is_a_clear_error() -> None:
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
     out = subprocess.run(

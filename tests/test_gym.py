@@ -192,6 +192,17 @@ def test_task_force_limit_is_a_termination_and_timeout_a_truncation() -> None:
     assert truncated and not terminated and info["outcome"] == "timeout"
 
 
+def test_task_run_ended_during_reset_ends_at_the_first_step() -> None:
+    # a 3.5 N limit: the executor refuses the first move (predicted |F| ~ 20 N) during reset
+    env = gym.make("constraint_aware/DrawerOpening-v0", executor={"force_limit": 3.5})
+    obs, info = env.reset(seed=0)
+    assert info["outcome"] == "force_limit"
+    _, reward, terminated, truncated, info = env.step(obs["direction"])
+    assert terminated and not truncated and info["outcome"] == "force_limit"
+    _, reward, terminated, _, _ = env.step(obs["direction"])  # after the end: nothing moves
+    assert terminated and reward == 0.0
+
+
 def test_task_config_kwarg_takes_any_task() -> None:
     from constraint_aware.sim.tasks import task_config
 

@@ -78,11 +78,8 @@ def test_message_states_the_valid_range() -> None:
 def test_workplane_normal_is_normalized() -> None:
     cfg = ExecutorConfig(workplane_normal=(0.0, 0.0, 2.0))
     assert cfg.workplane_normal == (0.0, 0.0, 1.0)
-    assert task_config("drawer-opening", workplane_normal=(0.0, 3.0, 0.0)).workplane_normal == (
-        0.0,
-        1.0,
-        0.0,
-    )
+    # a task's workplane normal is derived from its object (sim.tasks), a unit vector
+    assert task_config("drawer-opening").workplane_normal == (0.0, 1.0, 0.0)
 
 
 def test_derived_threshold_allows_any_positive_limit() -> None:
@@ -105,7 +102,8 @@ TASK_BAD: list[tuple[str, dict[str, Any], str]] = [
     ("drawer-opening", {"max_steps": 0}, "TaskConfig.max_steps"),
     ("drawer-opening", {"slip_limit": 0.0}, "TaskConfig.slip_limit"),
     ("drawer-opening", {"press_depth": -0.01}, "TaskConfig.press_depth"),
-    ("drawer-opening", {"workplane_normal": (0.0, 0.0, 0.0)}, "TaskConfig.workplane_normal"),
+    ("drawer-opening", {"object__counterbalance": 1.5}, "ObjectConfig.counterbalance"),
+    ("drawer-opening", {"object__handle_axis": (1.0, 0.0, 0.0)}, "ObjectConfig.handle_axis"),
     ("drawer-opening", {"force_exertion_type": "glue"}, "TaskConfig.force_exertion_type"),
     (
         "drawer-opening",
@@ -202,7 +200,7 @@ def test_settings_map_dotted_keys_and_parse_values() -> None:
             "executor.predictive_force=false",
             "executor.max_lead=none",
             "force_limit=40",
-            "workplane_normal=0,1,0",
+            "object.axis=0,1,0",  # the task's workplane normal follows the object (sim.tasks)
         ]
     )
     assert dict(s.task_overrides) == {
@@ -210,7 +208,7 @@ def test_settings_map_dotted_keys_and_parse_values() -> None:
         "object__radius": 0.08,
         "hand__translational_stiffness": 8000,
         "force_limit": 40,
-        "workplane_normal": (0, 1, 0),
+        "object__axis": (0, 1, 0),
     }
     assert dict(s.executor_overrides) == {
         "threshold": 1,

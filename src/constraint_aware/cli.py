@@ -337,6 +337,15 @@ def _run_parser(p: argparse.ArgumentParser) -> None:
         choices={"controller": CONTROLLERS},
         aliases={"offset_deg": ("--offset",)},
     )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="repeatable; any task or executor field: FIELD (TaskConfig, e.g. force_limit=40), "
+        "object.FIELD, hand.FIELD, executor.FIELD (e.g. executor.threshold=1); "
+        "an unknown key lists the valid ones",
+    )
     _add_policy(p)
     out = p.add_argument_group("outputs (checked before the run starts)")
     out.add_argument(
@@ -370,11 +379,14 @@ def _check_run_outputs(args: argparse.Namespace) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from constraint_aware.control.settings import parse_settings
     from constraint_aware.control.simulate import RunSpec, run
     from constraint_aware.policy import ConstraintAwarePolicy
 
     _check_run_outputs(args)
     spec = RunSpec(task=args.task, **collect(args, args.run_specs))
+    if args.set:
+        spec = spec.with_settings(parse_settings(args.set))
     policy = ConstraintAwarePolicy.load(args.policy) if spec.controller == "policy" else None
     frames: list[Any] = []
     on_step = None
@@ -585,6 +597,12 @@ def _bench_parser(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--force", action="store_true", help="write into --out even if it holds other files"
     )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run the sweeps on a Dask cluster (the 'cluster' extra): a scheduler address "
+        "(tcp://host:8786), or 'local' for a local cluster of --workers processes",
+    )
     _add_json(p, "results.json's content")
     p.set_defaults(func=cmd_bench)
 
@@ -597,11 +615,19 @@ def cmd_bench(args: argparse.Namespace) -> int:
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
     if args.workers is not None and args.workers < 1:
         raise InvalidInputError(f"--workers {args.workers}: must be >= 1")
+    if args.scheduler is not None:
+        require_extra("distributed", "cluster", "--scheduler")
     start = time.perf_counter()
     if args.replot:
         report = replot(args.replot)
     else:
-        report = run_bench(args.out, quick=args.quick, workers=args.workers, force=args.force)
+        report = run_bench(
+            args.out,
+            quick=args.quick,
+            workers=args.workers,
+            force=args.force,
+            scheduler=args.scheduler,
+        )
     human(args).print(
         Text(
             f"report: {report} (results.json and figures beside it); "

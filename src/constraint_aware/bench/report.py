@@ -6,6 +6,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from constraint_aware.bench.placement import report_lines as placement_report_lines
+
 
 def _f(x: float | None, digits: int = 1) -> str:
     if x is None or (isinstance(x, float) and math.isnan(x)):
@@ -171,6 +173,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
         add("")
     if "embodiment" in results:
         lines += _embodiment_section(results["embodiment"])
+    if "placement" in results:
+        lines.extend(placement_report_lines(results["placement"]))
     if results.get("worst_cases"):
         add("## Worst cases of the constraint-aware policy\n")
         add(

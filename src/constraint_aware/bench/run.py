@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench import experiments as ex
+from constraint_aware.bench import placement
 from constraint_aware.bench.embodiment import for_bench as embodiment_for_bench
 from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite
 from constraint_aware.bench.figures import draw_all
@@ -159,6 +160,7 @@ def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
     }
     results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds).to_dict()
     all_runs = list(suite_runs)
+    results["placement"] = placement.bench_section(quick)
     if not quick:
         heatmap, hm_runs = ex.offset_heatmap(cfg)
         heatmap["full_success_halfwidth_deg"] = _full_success_halfwidth(heatmap)

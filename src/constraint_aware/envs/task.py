@@ -78,7 +78,8 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         The episode ends when the executor stops: `terminated` on success or any safety stop
         (force limit, lost grasp or contact, non-finite readings...), `truncated` on its
         timeout (the task's max_steps). The reading that ends a run is acted on in the next
-        `step`, whose action is then not used.
+        `step`, whose action is then not used; a run that ended during `reset` (a fault while
+        sampling F_d) ends at the first `step`, as does any `step` after the end.
     info: "outcome" ("running" or the executor's outcome), "reason", "success", "progress" [m
         or rad], "progress_fraction" (of the goal), "slip_m" [m], "slip_deg" [deg],
         "force_norm" [N]; at the end also "record", the executor's full `RunRecord`.
@@ -213,8 +214,9 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             raise InvalidInputError("TaskEnv.step: call reset() first")
         record = self._record
         assert record is not None
-        if record.finished:
-            raise InvalidInputError("TaskEnv.step: the episode has ended; call reset()")
+        if record.finished:  # ended already (also possible during reset): nothing moves
+            truncated = record.outcome == TIMEOUT
+            return self._observation(), 0.0, not truncated, truncated, self._info()
         before = self.sim.progress()
         self._controller.action = np.asarray(action, dtype=float)
         out = self.executor.step(*self._reading)

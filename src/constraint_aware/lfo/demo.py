@@ -177,3 +177,46 @@ def load(path: str | Path) -> Demonstration:
         )
     except InvalidInputError as exc:  # pragma: no cover - validate raises DemoError
         raise DemoError(str(exc)) from exc
+
+
+def transformed(
+    demo: Demonstration,
+    matrix: FloatArray,
+    about: FloatArray | None = None,
+    translation: FloatArray | None = None,
+    instruction: str | None = None,
+    object_name: str | None = None,
+) -> Demonstration:
+    """The demonstration moved: positions p -> about + matrix (p - about) + translation.
+
+    matrix (3, 3): a rotation, a mirror or a scaling (or a product). Orientations are rotated
+    with a proper rotation and dropped otherwise (a mirrored hand is no rotation of the
+    original one); new words replace the old ones when given.
+    """
+    from scipy.spatial.transform import Rotation
+
+    m = np.asarray(matrix, dtype=float)
+    if m.shape != (3, 3) or not np.all(np.isfinite(m)):
+        raise DemoError(f"transform: expected a finite (3, 3) matrix, got shape {m.shape}")
+    c = np.zeros(3) if about is None else np.asarray(about, dtype=float)
+    shift = np.zeros(3) if translation is None else np.asarray(translation, dtype=float)
+    pos = c + (demo.position - c) @ m.T + shift
+    quat = None
+    det = float(np.linalg.det(m))
+    if demo.orientation is not None and det > 0:
+        scale = det ** (1.0 / 3.0)
+        rot = m / scale
+        if np.allclose(rot @ rot.T, np.eye(3), atol=1e-6):
+            w, x, y, z = demo.orientation.T
+            turned = Rotation.from_matrix(rot) * Rotation.from_quat(np.stack([x, y, z, w], 1))
+            qx, qy, qz, qw = turned.as_quat().T
+            quat = np.stack([qw, qx, qy, qz], axis=1)
+    return Demonstration(
+        demo.instruction if instruction is None else instruction,
+        demo.object if object_name is None else object_name,
+        demo.t.copy(),
+        pos,
+        quat,
+        demo.grasp_hint,
+        dict(demo.meta),
+    )

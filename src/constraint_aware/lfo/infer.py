@@ -34,6 +34,7 @@ from constraint_aware.lfo.fitting import (
     outlier_mask,
 )
 from constraint_aware.lfo.lexicon import constraint_from_words, grasp_for
+from constraint_aware.lfo.plausibility import check_units, motion_sense_warning
 
 GEOMETRY_RATIO = 0.35  # circle RMS / line RMS below this: an arc
 LINE_RATIO = 0.7  # circle RMS / line RMS above this: the circle explains nothing more
@@ -58,6 +59,8 @@ class SkillParameters:
     radius: float | None = None  # [m] revolute
     centre: list[float] | None = None  # (3,) [m] revolute
     axis: list[float] | None = None  # (3,) revolute rotation axis
+    start_position: list[float] | None = None  # (3,) [m] the hand at rest before the motion
+    goal: float | None = None  # demonstrated travel [m] (prismatic) or rotation [rad] (revolute)
     uncertainty: dict[str, float] = field(default_factory=dict)
     evidence: dict[str, Any] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
@@ -97,7 +100,9 @@ def classify_geometry(positions: FloatArray) -> tuple[dict[str, Any], CircleFit 
 
 
 def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> SkillParameters:
-    """Skill parameters of one demonstration (raises InferenceError when none can be had)."""
+    """Skill parameters of one demonstration (raises InferenceError when none can be had, and
+    plausibility.UnitError when the positions are not in metres)."""
+    check_units(demo)
     glitches = outlier_mask(demo.position)
     pos, times = demo.position[~glitches], demo.t[~glitches]
     travel = float(np.linalg.norm(pos.max(axis=0) - pos.min(axis=0)))
@@ -143,12 +148,23 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
             plane_rms_m=plane.rms,
             arc_deg=circle.arc_deg,
         )
-    else:
-        normal, plane_note = _prismatic_workplane(pos)
+    noun = words.noun
+    grasp, fixed, source = grasp_for(noun, constraint)
+    if demo.grasp_hint:
+        grasp, source = demo.grasp_hint, "the demonstration's grasp hint"
+    if grasp_override:
+        grasp, source = grasp_override, "user override"
+    if constraint != "revolute":
+        quats = None if demo.orientation is None else demo.orientation[~glitches]
+        normal, plane_note = _prismatic_workplane(pos, grasp, quats)
         if plane_note:
             warnings.append(plane_note)
         uncertainty["line_rms_m"] = geometry["line_rms_m"]
+        uncertainty["normal_std_deg"] = _line_direction_std_deg(pos)
     start = _motion_start(pos)
+    stop = len(pos) - _motion_start(pos[::-1])
+    rest_start = np.median(pos[: max(start, 3)], axis=0)
+    rest_end = np.median(pos[min(stop, len(pos) - 3) :], axis=0)
     if constraint == "revolute":
         # the arc's tangent at the resting start position, in the sense of the motion
         assert centre is not None
@@ -158,17 +174,26 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
         line = fit_line(pos[start:])
         direction = line.direction
     direction = unit(direction - float(direction @ normal) * normal)
+    if constraint == "revolute":
+        assert centre is not None
+        goal: float | None = _swept_angle(
+            pos, np.asarray(centre), normal, max(start, 3), min(stop, len(pos) - 3)
+        )
+    elif constraint == "prismatic":
+        goal = float((rest_end - rest_start) @ direction)
+    else:
+        goal = None
+    uncertainty["path_length_m"] = (
+        float(goal * (radius or 0.0)) if constraint == "revolute" and goal else abs(goal or 0.0)
+    )
     start_dir, start_rms = initial_direction(pos, times)
     uncertainty["initial_direction_rms_m"] = start_rms
     geometry["start_segment_direction"] = start_dir.tolist()
     geometry["glitches_removed"] = int(glitches.sum())
 
-    noun = words.noun
-    grasp, fixed, source = grasp_for(noun, constraint)
-    if demo.grasp_hint:
-        grasp, source = demo.grasp_hint, "the demonstration's grasp hint"
-    if grasp_override:
-        grasp, source = grasp_override, "user override"
+    sense = motion_sense_warning(demo, direction, rest_end - rest_start, constraint)
+    if sense:
+        warnings.append(sense)
     return SkillParameters(
         constraint_type=constraint,
         workplane_normal=unit(normal).tolist(),
@@ -178,6 +203,8 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
         radius=radius,
         centre=centre,
         axis=axis,
+        start_position=rest_start.tolist(),
+        goal=goal,
         uncertainty=uncertainty,
         evidence={"words": asdict(words), "geometry": geometry, "grasp_source": source},
         warnings=warnings,
@@ -191,9 +218,16 @@ def _motion_start(pos: FloatArray, moved: float = 0.01) -> int:
     return int(max(away[0] - 1, 0)) if away.size else 0
 
 
-def _prismatic_workplane(pos: FloatArray) -> tuple[FloatArray, str]:
-    """A line does not fix a plane: fit one if the path spans it, else take the vertical plane
-    through the line (the plane across a horizontal bar handle; README: LfO)."""
+def _prismatic_workplane(
+    pos: FloatArray, grasp: str, orientation: FloatArray | None = None
+) -> tuple[FloatArray, str]:
+    """A line does not fix a plane: fit one if the path spans it, else take the plane the grasp
+    implies (README: LfO): a hook (lazy closure) on a bar carries force only across the bar:
+    with the hand's orientations, the plane across the hand's x axis (the fingers curl in the
+    hand's y-z plane, sim/hand.py, so a hooked bar runs along x); without them, the vertical
+    plane through the line. A squeezed pole or a pressed plate moves in the horizontal plane
+    through it. For a vertical line (a sash window) without orientations, no plane is preferred:
+    the one across world y is taken, with a warning."""
     try:
         plane = fit_plane(pos)
         if plane.extent[1] > 0.2 * plane.extent[0]:
@@ -201,12 +235,64 @@ def _prismatic_workplane(pos: FloatArray) -> tuple[FloatArray, str]:
     except FitError:
         pass
     line = fit_line(pos).direction
-    normal = np.cross(line, [0.0, 0.0, 1.0])
-    if np.linalg.norm(normal) < 0.1:  # a vertical line
+    up = np.array([0.0, 0.0, 1.0])
+    bar = _hand_x(orientation) if orientation is not None else None
+    if grasp == "lazy_closure" and bar is not None:
+        across = bar - float(bar @ line) * line
+        if np.linalg.norm(across) > 0.5:
+            return unit(across), (
+                "the path is a line, which fixes no plane: workplane = the plane across the "
+                "hooked bar (the hand's x axis)"
+            )
+    if abs(float(line @ up)) > 0.9:
         normal = np.cross(line, [1.0, 0.0, 0.0])
-    return unit(normal), (
-        "the path is a line, which fixes no plane: workplane = the vertical plane through it"
-    )
+        note = "vertical plane through it"
+    elif grasp == "lazy_closure":
+        normal = np.cross(line, up)
+        note = "the vertical plane through it (across a hooked bar)"
+    else:
+        normal = np.cross(np.cross(up, line), line)  # in-plane normal closest to vertical
+        normal = normal if float(normal @ up) > 0 else -normal
+        note = "the horizontal plane through it (a pressed plate or a squeezed pole)"
+    return unit(normal), f"the path is a line, which fixes no plane: workplane = {note}"
+
+
+def _hand_x(orientation: FloatArray) -> FloatArray | None:
+    """(3,) the hand's mean x axis over the demonstration (quaternions (w, x, y, z))."""
+    from scipy.spatial.transform import Rotation
+
+    w, x, y, z = np.asarray(orientation, dtype=float).T
+    axes = Rotation.from_quat(np.stack([x, y, z, w], axis=1)).apply([1.0, 0.0, 0.0])
+    axes = axes * np.sign(axes @ axes[0])[:, None]  # an axis: one sign
+    mean = axes.mean(axis=0)
+    return unit(mean) if np.linalg.norm(mean) > 0.5 else None
+
+
+def _line_direction_std_deg(pos: FloatArray) -> float:
+    """[deg] 1-sigma uncertainty of a fitted line's direction: the slope error of a regression,
+    sigma_perp / (sqrt(N) * spread along the line)."""
+    line = fit_line(pos)
+    rel = pos - line.point
+    along = rel @ line.direction
+    perp = rel - np.outer(along, line.direction)
+    sigma = float(np.sqrt(np.mean(np.sum(perp**2, axis=1)) / 2.0))  # per perpendicular axis
+    spread = float(np.std(along))
+    return math.degrees(math.atan2(sigma, math.sqrt(len(pos)) * max(spread, 1e-9)))
+
+
+def _swept_angle(
+    path: FloatArray, centre: FloatArray, normal: FloatArray, start: int, stop: int
+) -> float:
+    """[rad] rotation about `normal` through `centre` from the rest before the motion
+    (path[:start]) to the rest after it (path[stop:]), medians against the noise, the angle
+    unwrapped along the path."""
+    e1 = unit(np.cross(normal, [1.0, 0.0, 0.0]))
+    if np.linalg.norm(np.cross(normal, [1.0, 0.0, 0.0])) < 0.5:
+        e1 = unit(np.cross(normal, [0.0, 1.0, 0.0]))
+    e2 = np.cross(normal, e1)
+    rel = path - centre
+    ang = np.unwrap(np.arctan2(rel @ e2, rel @ e1))
+    return float(np.median(ang[stop:]) - np.median(ang[:start]))
 
 
 def radius_error_pct(estimate: float, truth: float) -> float:

@@ -18,10 +18,11 @@ Grasp (force-exertion type, Saito et al. 2022) from the object, else from the co
 
 | object                                  | force-exertion type     | fixed orientation |
 |-----------------------------------------|-------------------------|-------------------|
-| drawer, door, gate, sliding door, flap  | lazy closure            | no                |
+| drawer, door, gate, sliding door, flap, | lazy closure            | no                |
+| lid, window (a hooked bar or lip)       |                         |                   |
 | pole, rod, lever                        | active-force closure    | no                |
 | plate, tray                             | passive-force closure   | no                |
-| handle, crank, knob, valve, wheel, lid  | passive-force closure   | yes               |
+| handle, crank, knob, valve, wheel       | passive-force closure   | yes               |
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ GRASP_TABLE: dict[str, tuple[str, bool]] = {
     "knob": ("passive_force_closure", True),
     "valve": ("passive_force_closure", True),
     "wheel": ("passive_force_closure", True),
-    "lid": ("passive_force_closure", True),
+    "lid": ("lazy_closure", False),
 }
 DEFAULT_GRASP = {"prismatic": ("lazy_closure", False), "revolute": ("lazy_closure", False)}
 
@@ -106,3 +107,31 @@ def grasp_for(noun: str | None, constraint: str) -> tuple[str, bool, str]:
         return g, fixed, f"grasp table: {noun}"
     g, fixed = DEFAULT_GRASP.get(constraint, ("lazy_closure", False))
     return g, fixed, f"default for a {constraint} constraint"
+
+
+#: The simulated object kind (sim.tasks.KINDS) each noun names; a noun whose kind contradicts
+#: the geometry is overruled by it (lfo/scene.py).
+NOUN_KINDS: dict[str, str] = {
+    "drawer": "drawer", "sliding door": "drawer", "slider": "pole",
+    "plate": "plate", "tray": "plate",
+    "pole": "pole", "rod": "pole",
+    "window": "window",
+    "door": "door", "gate": "door", "flap": "lid", "lid": "lid",
+    "handle": "crank", "crank": "crank", "knob": "crank", "valve": "crank", "wheel": "crank",
+}  # fmt: skip
+
+#: Verbs that say which way the object moves: opening pulls the handle (toward the palm's back,
+#: against the palm normal) or raises it; closing pushes or lowers it.
+OPENING_VERBS = ("open", "pull out", "pull", "lift", "raise")
+CLOSING_VERBS = ("close", "shut", "push in", "push", "lower")
+
+
+def verb_sense(instruction: str) -> str | None:
+    """ "open", "close" or None: the sense of motion the instruction asks for."""
+    text = instruction.lower()
+    opening, closing = _find(text, OPENING_VERBS), _find(text, CLOSING_VERBS)
+    if opening and not closing:
+        return "open"
+    if closing and not opening:
+        return "close"
+    return None

@@ -11,6 +11,8 @@ import numpy as np
 
 from constraint_aware.geometry import FloatArray, random_perpendicular, random_unit, unit
 from constraint_aware.lfo.demo import Demonstration
+from constraint_aware.lfo.scene import STEP_LENGTH
+from constraint_aware.sim.tasks import TaskConfig
 
 Kind = Literal["drawer", "door", "handle"]
 KINDS: tuple[Kind, ...] = ("drawer", "door", "handle")
@@ -104,7 +106,16 @@ def make_demo(
         ang = s * sweep
         path = centre + np.cos(ang)[:, None] * r0 + np.sin(ang)[:, None] * np.cross(axis, r0)
         truth = GroundTruth(kind, "revolute", axis, tangent, radius, centre, arc_deg)
-    # rest before and after, then the tracker's corruption
+    instruction, obj = INSTRUCTIONS[kind]
+    stamps, noisy = _track(path, rng, tr, rate)
+    return Demonstration(instruction, obj, stamps, noisy), truth
+
+
+def _track(
+    path: FloatArray, rng: np.random.Generator, tr: TrackingNoise, rate: float
+) -> tuple[FloatArray, FloatArray]:
+    """(timestamps (M,) [s], positions (M, 3) [m]): the path with rests before and after, as a
+    tracker reports it (jittered stamps, tremor, Gaussian noise, glitches)."""
     n_rest = int(tr.rest_time * rate)
     path = np.concatenate([np.repeat(path[:1], n_rest, 0), path, np.repeat(path[-1:], n_rest, 0)])
     path = np.asarray(path, dtype=np.float64)
@@ -119,5 +130,122 @@ def make_demo(
         idx = rng.choice(np.arange(n_rest, len(path) - n_rest), size=n_out, replace=False)
         jumps = random_unit(rng, n_out) * tr.outlier_size * rng.uniform(0.5, 1.5, (n_out, 1))
         path[idx] = path[idx] + jumps
-    instruction, obj = INSTRUCTIONS[kind]
-    return Demonstration(instruction, obj, stamps, path), truth
+    return np.asarray(stamps), np.asarray(path)
+
+
+# --- demonstrations of any placed object -----------------------------------------------------
+#: The words a demonstrator says for each object kind (sim.tasks.KINDS).
+KIND_INSTRUCTIONS = {
+    "drawer": ("open the drawer", "drawer"),
+    "plate": ("slide the plate", "plate"),
+    "pole": ("pull the pole", "pole"),
+    "window": ("open the window", "window"),
+    "door": ("open the door", "door"),
+    "lid": ("open the lid", "lid"),
+    "crank": ("turn the crank", "crank"),
+}
+HAND_SPEED = 0.1  # [m/s] mean speed of the demonstrating hand along the path
+
+
+@dataclass(frozen=True)
+class Placement:
+    """A randomly placed object (the truth) and the travel [m] or angle [rad] demonstrated."""
+
+    kind: str
+    task: TaskConfig
+    goal: float
+
+
+def random_placement(kind: str, rng: np.random.Generator) -> Placement:
+    """An object of `kind` at a random pose in front of the robot (base at the origin).
+
+    Any yaw; doors and cranks turning either way (a left- or right-hinged door); radii:
+    doors 0.35-1.0 m, lids 0.2-0.6 m, cranks 0.06-0.2 m; demonstrated travel 0.15-0.35 m
+    (slides), 45-90 deg (doors), 45-80 deg (lids), 60-150 deg (cranks).
+    """
+    from constraint_aware.sim.tasks import object_for, task_from_object
+
+    yaw = rng.uniform(0.0, 2 * math.pi)
+    horizontal = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    spot = np.array([rng.uniform(0.35, 0.75), rng.uniform(-0.35, 0.35), rng.uniform(0.6, 1.1)])
+    up = np.array([0.0, 0.0, 1.0])
+    if kind in ("drawer", "plate", "pole"):
+        obj = object_for(kind, position=_t(spot), axis=_t(horizontal))
+        goal = rng.uniform(0.15, 0.35)
+    elif kind == "window":
+        obj = object_for(kind, position=_t(spot), axis=_t(up), handle_axis=_t(horizontal))
+        goal = rng.uniform(0.15, 0.35)
+    elif kind in ("door", "crank"):
+        sense = 1.0 if rng.uniform() < 0.5 else -1.0  # right- or left-hinged / turning
+        radius = rng.uniform(0.35, 1.0) if kind == "door" else rng.uniform(0.06, 0.2)
+        hinge = spot - radius * horizontal
+        obj = object_for(
+            kind, position=_t(hinge), axis=(0.0, 0.0, sense), radial=_t(horizontal),
+            radius=radius,
+        )  # fmt: skip
+        goal = math.radians(rng.uniform(45.0, 90.0) if kind == "door" else rng.uniform(60, 150))
+    elif kind == "lid":
+        radius = rng.uniform(0.2, 0.6)
+        hinge = spot - radius * horizontal
+        obj = object_for(
+            kind, position=_t(hinge), axis=_t(np.cross(horizontal, up)), radial=_t(horizontal),
+            radius=radius,
+        )  # fmt: skip
+        goal = math.radians(rng.uniform(45.0, 80.0))
+    else:
+        from constraint_aware.errors import UnknownNameError
+        from constraint_aware.sim.tasks import KINDS
+
+        raise UnknownNameError("object kind", kind, list(KINDS))
+    task = task_from_object(kind, obj, success_progress=goal, step_length=STEP_LENGTH)
+    return Placement(kind, task, goal)
+
+
+def demo_of_object(
+    task: TaskConfig,
+    goal: float,
+    rng: np.random.Generator,
+    tracking: TrackingNoise | None = None,
+    rate: float = 30.0,
+    words: tuple[str, str] | None = None,
+    closing: bool = False,
+    orientation: bool = True,
+) -> Demonstration:
+    """A demonstration of operating `task`'s object from joint position 0 to `goal`: the
+    handle's path as a tracker reports it, with the hand's orientation (its mount on the
+    handle, turning with a hinge) unless `orientation` is False. `closing` plays it backwards
+    (from `goal` back to 0). Words: the kind's (KIND_INSTRUCTIONS) unless given."""
+    from scipy.spatial.transform import Rotation
+
+    tr = tracking or TrackingNoise()
+    o = task.object
+    handle = o.handle_position
+    path_length = goal * (o.radius if o.joint_type == "revolute" else 1.0)
+    duration = path_length / HAND_SPEED
+    n = int(duration * rate) + 1
+    s = _progress(rng, n, duration, tr.speed_variation)
+    q = s * goal
+    axis = np.asarray(o.axis, dtype=float)
+    mount = Rotation.from_matrix(task.hand_mount())
+    if o.joint_type == "prismatic":
+        path = handle + np.outer(q, axis)
+        rots = Rotation.concatenate([mount] * n)
+    else:
+        turn = Rotation.from_rotvec(np.outer(q, axis))
+        path = np.asarray(o.position) + turn.apply(handle - np.asarray(o.position))
+        rots = turn * mount
+    if closing:
+        path, rots = path[::-1], rots[::-1]
+    stamps, noisy = _track(path, rng, tr, rate)
+    instruction, name = words or KIND_INSTRUCTIONS.get(task.name, ("", ""))
+    quats = None
+    if orientation:
+        n_rest = int(tr.rest_time * rate)
+        idx = np.clip(np.arange(len(noisy)) - n_rest, 0, n - 1)
+        x, y, z, w = rots[idx].as_quat().T
+        quats = np.stack([w, x, y, z], axis=1)
+    return Demonstration(instruction, name, stamps, noisy, quats)
+
+
+def _t(v: FloatArray) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))

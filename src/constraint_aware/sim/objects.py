@@ -2,7 +2,10 @@
 
 Conventions: world z is up. A prismatic object slides along `axis` (its opening direction); a
 revolute object turns about `axis` through `position` (right-handed: positive = opening), and
-its handle sits `radius` from the axis along `radial` at joint angle 0.
+its handle sits `radius` from the axis along `radial` at joint angle 0. Any placement works:
+any yaw, hinges on either side (a left-hinged door turns about -z), horizontal hinges (a lid
+opened upwards) and vertical slides (a sash window); `object_frame` derives the handle's frame
+from these fields alone, always right-handed.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from constraint_aware.errors import (
     check_number,
     check_vector,
 )
+from constraint_aware.geometry import unit
 
 JointType = Literal["prismatic", "revolute"]
 HandleShape = Literal["bar", "pole", "plate", "knob"]
@@ -51,6 +55,10 @@ class ObjectConfig:
     joint_range: tuple[float, float] = (-0.01, 0.5)  # [m] or [rad]
     friction: float = 1.0  # [-] contact friction of the handle's surface
     panel_half: tuple[float, float, float] = (0.2, 0.2, 0.08)  # [m] drawer box / door / plate
+    handle_axis: tuple[float, float, float] | None = None  # prismatic bar: the direction the
+    # bar runs; None: horizontal and across the slide (for a vertical slide: world y)
+    counterbalance: float = 0.0  # [-] share of the moving part's weight carried by a balance
+    # (sash weights, spring balances, gas struts): MuJoCo's gravcomp on the moving body
     rgba: tuple[float, float, float, float] = (0.55, 0.4, 0.25, 1.0)
 
     def __post_init__(self) -> None:
@@ -77,6 +85,22 @@ class ObjectConfig:
         if not (lo <= 0 <= hi and lo < hi):
             raise ConfigError(n + "joint_range", self.joint_range, "(low, high), low <= 0 <= high")
         check_vector(n + "rgba", self.rgba, size=4)
+        check_number(n + "counterbalance", self.counterbalance, low=0, high=1)
+        if self.handle_axis is not None:
+            bar = check_vector(n + "handle_axis", self.handle_axis, nonzero=True)
+            if abs(np.linalg.norm(bar) - 1.0) > 1e-6:
+                raise ConfigError(n + "handle_axis", self.handle_axis, "a unit vector")
+            if abs(float(np.dot(bar, axis))) > 0.99:
+                raise ConfigError(n + "handle_axis", self.handle_axis, "not along the slide axis")
+
+    @property
+    def opening_direction(self) -> np.ndarray:
+        """(3,) unit: the handle's direction of motion at joint position 0 (prismatic: axis;
+        revolute: axis x radial, the opening tangent)."""
+        axis = np.asarray(self.axis, dtype=float)
+        if self.joint_type == "prismatic":
+            return axis
+        return np.cross(axis, np.asarray(self.radial, dtype=float))
 
     @property
     def handle_position(self) -> np.ndarray:
@@ -142,24 +166,43 @@ def _quat_from_frame(frame: np.ndarray) -> str:
 
 
 def object_frame(cfg: ObjectConfig) -> np.ndarray:
-    """(3, 3) columns (out, side, up) at the handle, joint position 0.
+    """(3, 3) right-handed columns (out, side, up) at the handle, joint position 0.
 
-    out points from the object toward the hand: the opening direction for prismatic objects
-    and, for revolute ones, the opening tangent (axis x radial).
+    out points from the object toward the hand: the opening direction (prismatic: the axis;
+    revolute: the opening tangent axis x radial). The rest follows the handle:
+    - bar on a hinge (door, lid): up = the hinge axis (the bar runs along it), whatever its
+      sign or tilt: a left-hinged door (axis -z) gets up = -z, a lid (horizontal hinge) a
+      horizontal up;
+    - bar on a slide (drawer, window): side = the bar (`handle_axis`, else horizontal and
+      across the slide; for a vertical slide world y);
+    - plate, pole: up = world z (pressed from above; a vertical pole);
+    - knob: up = the hinge axis signed upward (the hand presses the crank from above
+      whichever way it turns).
     """
-    up = np.array([0.0, 0.0, 1.0])
-    if cfg.joint_type == "prismatic":
-        out = np.asarray(cfg.axis, dtype=float)
+    out = unit(cfg.opening_direction)
+    axis = np.asarray(cfg.axis, dtype=float)
+    z = np.array([0.0, 0.0, 1.0])
+    if cfg.handle == "bar" and cfg.joint_type == "revolute":
+        up_ref = axis
+    elif cfg.handle == "knob" and cfg.joint_type == "revolute":
+        up_ref = axis if float(axis @ z) >= 0.0 else -axis
+    elif cfg.handle == "bar" and (cfg.handle_axis is not None or abs(float(out @ z)) > 0.9):
+        bar = np.asarray(cfg.handle_axis if cfg.handle_axis is not None else (0.0, 1.0, 0.0))
+        side = bar - float(bar @ out) * out
+        if np.linalg.norm(side) < 1e-6:
+            raise InvalidInputError("handle_axis must not be parallel to the slide axis")
+        side = unit(side)
+        return np.stack([out, side, np.cross(out, side)], axis=1)
     else:
-        out = np.cross(np.asarray(cfg.axis, float), np.asarray(cfg.radial, float))
-    if cfg.handle in ("plate", "knob"):
-        # pressed from above: `out` lies in the horizontal plane already
-        pass
-    side = np.cross(up, out)
+        up_ref = z
+    side = np.cross(up_ref, out)
     if np.linalg.norm(side) < 1e-9:
-        raise InvalidInputError("the opening direction must not be vertical")
-    side /= np.linalg.norm(side)
-    out = np.cross(side, up)
+        raise InvalidInputError(
+            f"the opening direction {tuple(np.round(out, 3))} must not be parallel to the "
+            f"{'hinge axis' if up_ref is axis else 'vertical'} for a {cfg.handle} handle"
+        )
+    side = unit(side)
+    up = np.cross(out, side)
     return np.stack([out, side, up], axis=1)
 
 
@@ -204,7 +247,8 @@ def object_mjcf(cfg: ObjectConfig) -> str:
         centre = (
             local_handle - cfg.standoff * out - (cfg.radius - length / 2) * np.asarray(cfg.radial)
         )
-        door_frame = np.stack([out, -np.asarray(cfg.radial, float), up], axis=1)
+        door_frame = np.stack([out, -np.asarray(cfg.radial, float), up], axis=1)  # right-handed:
+        # up follows the hinge axis (object_frame), so a left-hinged door's up is -z
         main = (
             f'<geom name="object_panel" type="box" size="0.015 {length / 2} {pz}" '
             f'pos="{_v(centre - 0.015 * out)}" quat="{_quat_from_frame(door_frame)}" {vis} '
@@ -235,7 +279,7 @@ def object_mjcf(cfg: ObjectConfig) -> str:
     scenery = _scenery(cfg, frame)
     return f"""
     {scenery}
-    <body name="{OBJECT_BODY}" pos="{_v(body_pos)}">
+    <body name="{OBJECT_BODY}" pos="{_v(body_pos)}" gravcomp="{cfg.counterbalance}">
       {joint}
       {main}
       <site name="{HANDLE_SITE}" pos="{_v(local_handle)}" size="0.004" rgba="0 1 0 1"/>
