@@ -1,5 +1,8 @@
 """Throughput of the training env backends and latency of one policy decision. Prints JSON.
 
+The paper's policy is compared with SB3 (same 6-input layout); the default policy's
+`update_direction` (its session, with the step force) is timed beside it.
+
     python benchmarks/policy_speed.py [--repeats 7]
 
 Each figure is the median over `repeats` measurements in this one run; the ratio compares the
@@ -18,7 +21,7 @@ import numpy as np
 
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.training.batch import SingleSystemBatch
-from constraint_aware.training.config import EnvConfig
+from constraint_aware.training.config import EnvConfig, resistance_config
 from constraint_aware.training.env import make_force_model
 
 
@@ -31,8 +34,10 @@ def median_time(fn: Callable[[], object], repeats: int) -> float:
     return statistics.median(times)
 
 
-def env_steps_per_s(backend: str, n_envs: int, episodes: int, repeats: int) -> float:
-    config = EnvConfig()
+def env_steps_per_s(
+    backend: str, n_envs: int, episodes: int, repeats: int, config: EnvConfig | None = None
+) -> float:
+    config = config or EnvConfig()
     env = SingleSystemBatch(n_envs, config, make_force_model(backend, config))
     rng = np.random.default_rng(0)
     actions = rng.uniform(-0.2, 0.2, size=(n_envs, 3))
@@ -50,7 +55,9 @@ def env_steps_per_s(backend: str, n_envs: int, episodes: int, repeats: int) -> f
 
 
 def act_latency_us(repeats: int, calls: int = 2000) -> dict[str, float]:
-    policy = ConstraintAwarePolicy.load()
+    policy = ConstraintAwarePolicy.load("paper")  # 6 inputs: the SB3 model below matches it
+    default = ConstraintAwarePolicy.load()
+    session = default.session()
     rng = np.random.default_rng(0)
     forces = rng.normal(size=(calls, 3))
     dirs = rng.normal(size=(calls, 3))
@@ -70,6 +77,9 @@ def act_latency_us(repeats: int, calls: int = 2000) -> dict[str, float]:
         "act_median_us": per_call(lambda i: policy.act(f_hat[i], dirs[i])),
         "update_direction_median_us": per_call(
             lambda i: policy.update_direction(10.0 * forces[i], dirs[i])
+        ),
+        "default_update_direction_median_us": per_call(
+            lambda i: session.update_direction(10.0 * forces[i], dirs[i], step_force=20.0)
         ),
     }
     try:
@@ -94,6 +104,9 @@ def main() -> None:
     result = {
         "analytic_env_steps_per_s_n6000": env_steps_per_s("analytic", 6000, 20, args.repeats),
         "mujoco_env_steps_per_s_n200": env_steps_per_s("mujoco", 200, 2, args.repeats),
+        "analytic_resistance_env_steps_per_s_n6000": env_steps_per_s(
+            "analytic", 6000, 20, args.repeats, resistance_config("magnitude")
+        ),
         **act_latency_us(args.repeats),
         "repeats": args.repeats,
     }

@@ -81,3 +81,41 @@ def test_gym_registration_and_episode_end() -> None:
 def test_unknown_backend_lists_valid_names() -> None:
     with pytest.raises(UnknownNameError, match="analytic, mujoco"):
         SingleSystemEnv(backend="bullet")
+
+
+def test_backends_agree_with_resistance(rng: np.random.Generator) -> None:
+    """Along-axis resistance (dry friction, damping, inertia) is one more stick-or-slide limit
+    in both backends: MuJoCo's joint frictionloss, the closed form's limit."""
+    from constraint_aware.training.config import resistance_config
+
+    env = SingleSystemBatch(200, resistance_config(resistance_free_share=0.0))
+    env.reset(rng)
+    p = env.params
+    r = env.resistance
+    assert r.max() > 3.0  # with resistance
+    fa = analytic_constraint_force(p.axis, env.direction, p.friction, p.stiffness, 0.01, r)
+    fm = MujocoConstraintForce()(p.axis, env.direction, p.friction, p.stiffness, 0.01, r)
+    sliding = np.abs(np.sum(fa * p.axis, axis=1)) < p.stiffness * 0.01 * np.sum(
+        env.direction * p.axis, axis=1
+    ) * (1 - 1e-3)
+    assert sliding.mean() > 0.9
+    assert float(np.max(angle_deg(fa[sliding], fm[sliding]))) < 0.01
+    rel = np.abs(np.linalg.norm(fm, axis=1) / np.linalg.norm(fa, axis=1) - 1)
+    assert float(np.max(rel[sliding])) < 0.01
+
+
+def test_mujoco_env_with_resistance_matches_the_analytic_episode() -> None:
+    """A whole episode with resistance: both backends give the same observations."""
+    from constraint_aware.training.config import resistance_config
+
+    def rollout(backend: str) -> np.ndarray:
+        cfg = resistance_config("magnitude", resistance_free_share=0.0)
+        env = SingleSystemEnv(cfg, backend=backend)
+        obs, _ = env.reset(seed=3)
+        out = [obs]
+        for _ in range(5):
+            obs, *_ = env.step(np.array([0.1, -0.2, 0.05], dtype=np.float32))
+            out.append(obs)
+        return np.array(out)
+
+    np.testing.assert_allclose(rollout("mujoco"), rollout("analytic"), atol=2e-3)

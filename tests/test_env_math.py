@@ -123,3 +123,122 @@ def test_horizontal_workplane_keeps_everything_horizontal(rng: np.random.Generat
     env.reset(rng)
     assert np.max(np.abs(env.params.axis[:, 2])) < 1e-12
     assert np.max(np.abs(env.direction[:, 2])) < 1e-12
+
+
+# --- the object's own resistance along the joint (issue 9) ----------------------------------
+def test_dry_resistance_limits_the_force_along_the_axis() -> None:
+    k, step, r0 = 2000.0, 0.01, 4.0
+    # aligned: no push across the guide, the spring's remaining stretch balances R0
+    f = analytic_constraint_force(X, X, np.zeros(1), np.array([k]), step, np.array([r0]))
+    np.testing.assert_allclose(f[0], [-r0, 0.0, 0.0], atol=1e-12)
+    # with Coulomb friction on top, the limit is mu*|p| + R0
+    mu, deg = 0.1, 20.0
+    f = analytic_constraint_force(X, _dir(deg), np.array([mu]), np.array([k]), step, np.array([r0]))
+    push = k * step * np.sin(np.radians(deg))
+    assert f[0, 0] == pytest.approx(-(mu * push + r0), rel=1e-12)
+    assert f[0, 1] == pytest.approx(-push, rel=1e-12)
+
+
+def test_resistance_above_the_drive_holds_the_body() -> None:
+    k, step = 1000.0, 0.01
+    d = _dir(30.0)
+    f = analytic_constraint_force(X, d, np.zeros(1), np.array([k]), step, np.array([9.0]))
+    np.testing.assert_allclose(f, -k * step * d, atol=1e-12)  # 8.66 N drive < 9 N: stuck
+
+
+def _resisting_env(rng: np.random.Generator, n: int = 2000, **over: object) -> SingleSystemBatch:
+    from constraint_aware.training.config import resistance_config
+
+    env = SingleSystemBatch(n, resistance_config(**over))  # type: ignore[arg-type]
+    env.reset(rng)
+    return env
+
+
+def test_resistance_draws_follow_their_documented_ranges(rng: np.random.Generator) -> None:
+    from constraint_aware.training.config import RESISTANCE
+
+    env = _resisting_env(rng, 20_000)
+    p, c = env.params, env.config
+    step_force = p.stiffness * c.step_length
+    v_nom = c.step_length / c.control_period
+    free = (p.dry_friction == 0) & (p.damping == 0) & (p.mass == 0)
+    assert abs(free.mean() - RESISTANCE["resistance_free_share"]) < 0.02
+    hi = RESISTANCE["dry_friction"][1]
+    assert np.all(p.dry_friction <= hi * step_force + RESISTANCE["dry_friction_abs"][1] + 1e-9)
+    assert np.all(p.damping * v_nom <= RESISTANCE["damping"][1] * step_force + 1e-9)
+    a_nom = v_nom / c.control_period
+    assert np.all(p.mass * a_nom <= RESISTANCE["inertia"][1] * step_force + 1e-9)
+    preload = np.linalg.norm(p.preload, axis=1)
+    assert np.all(preload <= RESISTANCE["preload"][1] * step_force + 1e-9)
+    cone = angle_deg(p.preload[preload > 0], p.axis[preload > 0])
+    assert np.max(cone) <= c.preload_cone_deg + 1e-9
+
+
+def test_aligned_body_sees_its_resistance_and_no_excess_reward(rng: np.random.Generator) -> None:
+    env = _resisting_env(rng, 500, offset_deg=(0.0, 0.0), friction=(0.0, 0.0))
+    env.config = EnvConfig.from_dict({**env.config.to_dict(), "force_noise": 0.0})
+    _, reward, _ = env.step(np.zeros((500, 3)))
+    p = env.params
+    # first step from rest: R0 + c v + m v / T; then steady: R0 + c v (no acceleration)
+    v = env.config.step_length / env.config.control_period
+    np.testing.assert_allclose(env.resistance, p.dry_friction + p.damping * v, atol=1e-9)
+    np.testing.assert_allclose(env.force, -env.resistance[:, None] * p.axis, atol=1e-9)
+    np.testing.assert_allclose(reward, 0.0, atol=1e-12)  # only the object's own resistance
+    # the preload has been released (the body slid): the sensor shows -preload on top
+    measured = env.measured_force()
+    expected = p.force_gain[:, None] * env.force - p.preload
+    np.testing.assert_allclose(measured, expected, atol=1e-12)
+
+
+def test_excess_reward_equals_the_papers_without_resistance(rng: np.random.Generator) -> None:
+    env = SingleSystemBatch(300, EnvConfig())
+    env.reset(rng)
+    _, reward, _ = env.step(rng.uniform(-0.3, 0.3, (300, 3)))
+    scale = env.params.stiffness * env.config.step_length
+    np.testing.assert_allclose(reward, -np.linalg.norm(env.force, axis=1) / scale, atol=1e-12)
+
+
+def test_history_and_magnitude_observations(rng: np.random.Generator) -> None:
+    from constraint_aware.policy import MAGNITUDE_CLIP, OBSERVATIONS
+
+    env = SingleSystemBatch(200, EnvConfig(observation="history"))
+    obs0 = env.reset(rng)
+    assert obs0.shape == (200, len(OBSERVATIONS["history"]))
+    np.testing.assert_array_equal(obs0[:, 6:], 0.0)  # no previous step at the start
+    obs1, _, _ = env.step(np.zeros((200, 3)))
+    np.testing.assert_array_equal(obs1[:, 6:], obs0[:, :6])
+    env = SingleSystemBatch(200, EnvConfig(observation="magnitude"))
+    obs = env.reset(rng)
+    norm = np.linalg.norm(env.measured_force(), axis=1)
+    ratio = norm / (env.params.stiffness * env.config.step_length)
+    expected = np.where(norm >= env.config.threshold, np.minimum(ratio, MAGNITUDE_CLIP), 0.0)
+    np.testing.assert_allclose(obs[:, 6], expected, atol=1e-12)
+    unknown = SingleSystemBatch(
+        2000, EnvConfig(observation="magnitude", step_force_unknown_share=0.25)
+    )
+    obs = unknown.reset(rng)
+    assert 0.2 < np.mean(obs[:, 6] == 0.0) < 0.3
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("episode_length", 0),
+        ("offset_deg", (10.0, 5.0)),
+        ("offset_deg", (0.0, 90.0)),
+        ("stiffness", (0.0, 10.0)),
+        ("dry_friction", (-0.1, 0.2)),
+        ("damping", (0.0, float("nan"))),
+        ("resistance_free_share", 1.5),
+        ("threshold", -1.0),
+        ("action_scale", float("nan")),
+        ("control_period", 0.0),
+        ("observation", "vision"),
+        ("workplane", "tilted"),
+    ],
+)
+def test_env_config_validation_names_the_field(field: str, value: object) -> None:
+    from constraint_aware.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=f"EnvConfig.{field}"):
+        EnvConfig(**{field: value})  # type: ignore[arg-type]

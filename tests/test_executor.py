@@ -25,6 +25,7 @@ from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import MIN_THRESHOLD
 from constraint_aware.errors import InvalidInputError
 from constraint_aware.geometry import angle_deg, rotate_about
+from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.spatial import Pose, Wrench
 
 U = np.array([1.0, 0.0, 0.0])
@@ -127,12 +128,13 @@ def test_policy_stops_correcting_below_the_threshold() -> None:
 
 
 def test_policy_on_a_frictionless_guide_keeps_the_median_friction_bias() -> None:
-    """(F^, d) fixes only error + atan(mu): on a frictionless guide the policy, trained on
-    mu ~ U(0, 0.15), corrects for the tilt of a typical mu that is not there."""
+    """(F^, d) fixes only error + atan(mu): on a frictionless guide the paper's policy, trained
+    on mu ~ U(0, 0.15), corrects for the tilt of a typical mu that is not there."""
     robot = FakeGuide()
     cfg = ExecutorConfig(threshold=0.2)
-    rec = Executor(robot, PolicyController(), cfg, monitor=robot).run(d0(-30))
-    mean_mu = float(np.mean(PolicyController().policy.card["env_config"]["friction"]))
+    paper = PolicyController(ConstraintAwarePolicy.load("paper"))
+    rec = Executor(robot, paper, cfg, monitor=robot).run(d0(-30))
+    mean_mu = float(np.mean(paper.policy.card["env_config"]["friction"]))
     assert rec.angles[-1] == pytest.approx(math.degrees(math.atan(mean_mu)), abs=1.5)
 
 

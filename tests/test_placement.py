@@ -93,6 +93,13 @@ def test_a_left_hinged_door_opens() -> None:
     record, info = execute(infer_skill(demo), task=task)
     assert record.success, record.reason
     assert info["goal_rotation_deg"] == pytest.approx(60.0, abs=1.0)
+    # the record states the demonstrated goal and how the robot measured reaching it (a hooked
+    # door: the hand's distance from its start, the chord of the demonstrated angle)
+    assert record.label["goal_rotation_deg"] == info["goal_rotation_deg"]
+    assert record.goal is not None and record.goal["kind"] == "travel"
+    chord = 2 * task.object.radius * math.sin(math.radians(60) / 2)
+    assert record.goal["value"] == pytest.approx(chord, rel=0.02)
+    assert record.goal["reached"] >= record.goal["value"]
 
 
 # --- the object from the demonstration ------------------------------------------------------

@@ -50,3 +50,35 @@ def test_same_seed_same_weights(tmp_path: Path) -> None:
     b = train(config, tmp_path / "b", final_eval_episodes=200).policy.layers
     for (wa, ba), (wb, bb) in zip(a, b, strict=True):
         assert (wa == wb).all() and (ba == bb).all()
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("total_timesteps", 0),
+        ("total_timesteps", -5),
+        ("n_envs", 0),
+        ("learning_rate", 0.0),
+        ("learning_rate", float("nan")),
+        ("batch_size", 10**9),
+        ("n_epochs", 0),
+        ("gamma", 1.5),
+        ("clip_range", 0.0),
+        ("net_arch", ()),
+        ("eval_every", 0),
+        ("target_angle_deg", -1.0),
+        ("time_budget_s", 0.0),
+        ("seed", -1),
+    ],
+)
+def test_train_config_validation_names_the_field(field: str, value: object) -> None:
+    from constraint_aware.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match=f"TrainConfig.{field}"):
+        make_config("fast", **{field: value})
+
+
+def test_default_preset_trains_with_resistance() -> None:
+    config = make_config("default")
+    assert config.env.has_resistance
+    assert config.env.resistance_free_share == 0.5

@@ -493,6 +493,7 @@ def _lfo_parser(p: argparse.ArgumentParser) -> None:
     p.add_argument("--grasp", choices=GRASP_TYPES, help="override the force-exertion type")
     p.add_argument("--controller", default="policy", choices=CONTROLLERS, help="for --execute")
     p.add_argument("--seed", type=int, default=0, help="for --execute")
+    _add_policy(p)
     p.add_argument("--record", metavar="PATH", help="the execution's run record (.json)")
     p.set_defaults(func=cmd_lfo)
 
@@ -504,6 +505,11 @@ def cmd_lfo(args: argparse.Namespace) -> int:
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
     check_output(args.record, "--record", JSON_SUFFIXES, stdout=True)
     out_console = human(args)
+    policy = None
+    if args.execute and args.controller == "policy":
+        from constraint_aware.policy import ConstraintAwarePolicy
+
+        policy = ConstraintAwarePolicy.load(args.policy)  # before any work
     demo = load(args.demo)
     skill = infer_skill(demo, grasp_override=args.grasp)
     out: dict[str, Any] = {"demo": str(args.demo), "skill": skill.to_dict()}
@@ -512,7 +518,7 @@ def cmd_lfo(args: argparse.Namespace) -> int:
         from constraint_aware.lfo.execute import execute
 
         try:
-            record, info = execute(skill, controller=args.controller, seed=args.seed)
+            record, info = execute(skill, controller=args.controller, seed=args.seed, policy=policy)
         except BaseException as exc:  # write the attached record, as cap run does
             partial = getattr(exc, "run_record", None)
             if partial is None:

@@ -1,12 +1,19 @@
 """ConstraintAwarePolicy: the trained direction-update policy, run with numpy alone.
 
 A policy file is a pair: `NAME.npz` (the MLP's weights, float32, no pickle) and `NAME.json`
-(the card: observation layout, training config, seed, metrics, library versions).
+(the card: observation layout, inputs it needs from the robot, training config, seed, metrics,
+library versions). Two policies ship with the package (`POLICY_NAMES`): `default`, trained with
+the object's own resistance along the joint (issue 9), and `paper`, the faithful reproduction
+of the paper's policy (trained without it, assumption 3).
+
+Both are validated at load: every problem raises `PolicyFileError` naming the file and field.
 """
 
 from __future__ import annotations
 
 import json
+import math
+import zipfile
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -14,11 +21,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from constraint_aware.errors import InvalidInputError, PolicyFileError
+from constraint_aware import deadband
+from constraint_aware.errors import InvalidInputError, PolicyFileError, UnknownNameError
 from constraint_aware.geometry import FloatArray, as_vector, normalize_force, update_direction_rule
 
 CARD_FORMAT = "constraint-aware-policy/1"
-OBSERVATION_LAYOUT = (
+_CURRENT = (
     "force_unit_x",
     "force_unit_y",
     "force_unit_z",
@@ -26,18 +34,133 @@ OBSERVATION_LAYOUT = (
     "direction_y",
     "direction_z",
 )
-DEFAULT_POLICY_NAME = "policy"
-#: [N] default force threshold of `update_direction`, the training env's default.
-DEFAULT_THRESHOLD = 0.2
+#: The paper's observation (F/|F|, d): also the layout of cards written before issue 9.
+OBSERVATION_LAYOUT = _CURRENT
+#: Observation layouts by name. "history" adds the previous step's (F/|F|, d) (zeros at the
+#: first step); "magnitude" adds |F| / (k*delta), the force over the robot's step force (zero
+#: below the dead band, and zero when the robot does not report its stiffness).
+OBSERVATIONS: dict[str, tuple[str, ...]] = {
+    "paper": _CURRENT,
+    "history": _CURRENT + tuple(f"previous_{name}" for name in _CURRENT),
+    "magnitude": (*_CURRENT, "force_over_step_force"),
+}
+#: What each observation needs from the robot besides the force and d (the card's `inputs`).
+OBSERVATION_INPUTS: dict[str, tuple[str, ...]] = {
+    "paper": ("force", "direction"),
+    "history": ("force", "direction"),
+    "magnitude": ("force", "direction", "step_force"),
+}
+#: |F| / (k*delta) is clipped to this: beyond it the arm pushes far past one blocked step.
+MAGNITUDE_CLIP = 3.0
+#: The shipped policies: `default` (robust to the object's resistance) and `paper`.
+POLICY_NAMES = ("default", "paper")
+DEFAULT_POLICY_NAME = "default"
+#: [N] default dead band of `update_direction`: deadband.py's floor (the training threshold).
+DEFAULT_THRESHOLD = deadband.MIN_THRESHOLD
+_MAX_LAYERS = 16
+_MAX_WIDTH = 4096
 
 
-def shipped_policy_path() -> Path:
-    """Path of the pre-trained policy's `.npz` inside the installed package."""
-    return Path(str(resources.files("constraint_aware") / "data" / f"{DEFAULT_POLICY_NAME}.npz"))
+def dead_band_card() -> dict[str, Any]:
+    """The card's `dead_band` entry: deadband.py's rule, which update_direction, the executor
+    and the card share (no hand-set threshold)."""
+    return {
+        "floor_N": deadband.MIN_THRESHOLD,
+        "noise_sigmas": deadband.NOISE_SIGMAS,
+        "rule": "max(floor_N, noise_sigmas * per-axis std of the F_d samples) [N]; "
+        "update_direction's default is floor_N",
+    }
+
+
+def shipped_policy_path(name: str = DEFAULT_POLICY_NAME) -> Path:
+    """Path of a shipped policy's `.npz` inside the installed package (`POLICY_NAMES`)."""
+    if name not in POLICY_NAMES:
+        raise UnknownNameError("policy", name, POLICY_NAMES)
+    return Path(str(resources.files("constraint_aware") / "data" / f"{name}.npz"))
+
+
+def shipped_log_path(name: str = DEFAULT_POLICY_NAME) -> Path:
+    """The training log shipped beside a policy (`cap train --ship` writes training_log.csv
+    next to the default; the paper's is paper_training_log.csv)."""
+    stem = "training_log" if name == DEFAULT_POLICY_NAME else f"{name}_training_log"
+    return shipped_policy_path(name).parent / f"{stem}.csv"
+
+
+def _layout_name(layout: tuple[str, ...]) -> str | None:
+    for name, names in OBSERVATIONS.items():
+        if names == layout:
+            return name
+    return None
+
+
+class DirectionUpdater:
+    """One run's direction updates: holds the previous step for history observations.
+
+    Create one per run (`policy.session()`), call `update_direction` each control step and
+    `reset()` before the next run. For policies without history it keeps no state.
+    """
+
+    def __init__(self, policy: ConstraintAwarePolicy) -> None:
+        self.policy = policy
+        self._previous = np.zeros(6)
+
+    def reset(self) -> None:
+        """Forget the previous step (start of a run)."""
+        self._previous = np.zeros(6)
+
+    def update_direction(
+        self,
+        force: ArrayLike,
+        direction: ArrayLike,
+        force_offset: ArrayLike | None = None,
+        threshold: float | None = None,
+        step_force: float | None = None,
+    ) -> FloatArray:
+        """The next motion direction d_{t+1} (3,) from a raw wrist force and d_t (paper 3.4.2).
+
+        force: (3,) [N] measured force F_s, world frame; force_offset: (3,) [N] F_d recorded
+        after grasping (default zero); F = F_s - F_d. threshold [N]: the dead band (default
+        `deadband.MIN_THRESHOLD`; a robot passes `deadband.threshold_from_noise` of its F_d
+        samples): if |F| < threshold the direction is returned unchanged. step_force [N]:
+        the robot's stiffness times the step length (k*delta), used by policies whose card
+        lists it in `inputs`; without it they get zero there (trained for that case too).
+        """
+        p = self.policy
+        f = as_vector(force, "force")
+        d = as_vector(direction, "direction")
+        if force_offset is not None:
+            f = f - as_vector(force_offset, "force_offset")
+        thr = p.threshold if threshold is None else float(threshold)
+        if not np.isfinite(thr) or thr < 0:
+            raise InvalidInputError(f"threshold: must be finite and >= 0 [N], got {threshold}")
+        if step_force is not None and not (np.isfinite(step_force) and step_force > 0):
+            raise InvalidInputError(f"step_force: must be finite and > 0 [N], got {step_force}")
+        norm_d = float(np.linalg.norm(d))
+        if norm_d < 1e-9:
+            raise InvalidInputError("direction: must be a non-zero vector")
+        d = d / norm_d
+        f_hat = normalize_force(f, thr)
+        current = np.concatenate([f_hat, d])
+        if p.observation == "history":
+            obs = np.concatenate([current, self._previous])
+            self._previous = current
+        elif p.observation == "magnitude":
+            norm = float(np.linalg.norm(f))
+            ratio = 0.0
+            if step_force is not None and np.any(f_hat):
+                ratio = min(norm / float(step_force), MAGNITUDE_CLIP)
+            obs = np.concatenate([current, [ratio]])
+        else:
+            obs = current
+        if not np.any(f_hat):
+            return d
+        a = p.action_scale * p.act_batch(obs[None, :])[0]
+        return np.asarray(update_direction_rule(d, a))
 
 
 class ConstraintAwarePolicy:
-    """MLP (tanh hidden layers) mapping s = (F/|F|, d) in R^6 to an action a in [-1, 1]^3.
+    """MLP (tanh hidden layers) mapping an observation (the card's `observation_layout`, at
+    least s = (F/|F|, d) in R^6) to an action a in [-1, 1]^3.
 
     The direction update is d <- (d + s_a a)/|d + s_a a| with s_a the card's action scale.
     """
@@ -45,10 +168,20 @@ class ConstraintAwarePolicy:
     def __init__(self, layers: list[tuple[FloatArray, FloatArray]], card: dict[str, Any]) -> None:
         if not layers:
             raise PolicyFileError("a policy needs at least one layer")
-        if layers[0][0].shape[1] != 6 or layers[-1][0].shape[0] != 3:
+        layout = tuple(card.get("observation_layout", OBSERVATION_LAYOUT))
+        observation = _layout_name(layout)
+        if observation is None:
             raise PolicyFileError(
-                f"policy maps {layers[0][0].shape[1]} -> {layers[-1][0].shape[0]}, expected 6 -> 3"
+                f"observation_layout: {list(layout)} is none of " + ", ".join(OBSERVATIONS)
             )
+        n_in = layers[0][0].shape[1]
+        if n_in != len(layout) or layers[-1][0].shape[0] != 3:
+            raise PolicyFileError(
+                f"policy maps {n_in} -> {layers[-1][0].shape[0]}, expected {len(layout)} -> 3 "
+                f"(observation {observation!r})"
+            )
+        self.observation = observation
+        self.observation_layout = layout
         # Float64 copies: the float32 training weights are reproduced to ~1e-7 while the
         # matrix products avoid float32 round-off.
         self._weights = [np.ascontiguousarray(w.T, dtype=np.float64) for w, _ in layers]
@@ -56,35 +189,85 @@ class ConstraintAwarePolicy:
         self.card = card
         env = card.get("env_config", {})
         self.action_scale = float(env.get("action_scale", 1.0))
-        self.threshold = float(env.get("threshold", DEFAULT_THRESHOLD))
+        if not (math.isfinite(self.action_scale) and self.action_scale > 0):
+            raise PolicyFileError(f"env_config.action_scale: must be finite and > 0, got {env}")
+        self.threshold = DEFAULT_THRESHOLD
+        self._session = DirectionUpdater(self)
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """What the policy needs from the robot each step (e.g. "step_force": k*delta [N])."""
+        return OBSERVATION_INPUTS[self.observation]
+
+    @property
+    def name(self) -> str:
+        return str(self.card.get("name", "custom"))
 
     # --- loading --------------------------------------------------------------------------
     @classmethod
-    def load(cls, path: str | Path | None = None) -> ConstraintAwarePolicy:
-        """Load a policy (`.npz` plus its `.json` card beside it); default: the shipped one."""
-        npz_path = Path(path) if path is not None else shipped_policy_path()
-        if npz_path.suffix == ".json":
-            npz_path = npz_path.with_suffix(".npz")
+    def load(cls, name_or_path: str | Path | None = None) -> ConstraintAwarePolicy:
+        """Load a shipped policy by name (`POLICY_NAMES`; None: "default") or a file
+        (`.npz` plus its `.json` card beside it)."""
+        if name_or_path is None:
+            npz_path = shipped_policy_path()
+        elif isinstance(name_or_path, str) and name_or_path in POLICY_NAMES:
+            npz_path = shipped_policy_path(name_or_path)
+        else:
+            npz_path = Path(name_or_path)
+            if npz_path.suffix == ".json":
+                npz_path = npz_path.with_suffix(".npz")
+            elif npz_path.suffix != ".npz" and not npz_path.exists():
+                raise UnknownNameError("policy", str(name_or_path), POLICY_NAMES)
+        return cls._load_files(npz_path)
+
+    @classmethod
+    def _load_files(cls, npz_path: Path) -> ConstraintAwarePolicy:
         card_path = npz_path.with_suffix(".json")
         if not npz_path.is_file():
             raise PolicyFileError(f"policy weights not found: {npz_path}")
         if not card_path.is_file():
             raise PolicyFileError(f"policy card not found: {card_path}")
-        try:
-            card = json.loads(card_path.read_text())
-        except json.JSONDecodeError as exc:
-            raise PolicyFileError(f"{card_path}: not valid JSON ({exc})") from exc
-        if card.get("format") != CARD_FORMAT:
-            raise PolicyFileError(f"{card_path}: format {card.get('format')!r}, not {CARD_FORMAT}")
-        if tuple(card.get("observation_layout", ())) != OBSERVATION_LAYOUT:
-            raise PolicyFileError(f"{card_path}: observation layout differs from this version's")
+        card = _read_card(card_path)
+        layout = card["observation_layout"]
+        n = card["n_layers"]
+        layers: list[tuple[FloatArray, FloatArray]] = []
         try:
             with np.load(npz_path, allow_pickle=False) as data:
-                n = int(card["n_layers"])
-                layers = [(data[f"w{i}"], data[f"b{i}"]) for i in range(n)]
-        except (KeyError, ValueError, OSError) as exc:
-            raise PolicyFileError(f"{npz_path}: cannot read layers ({exc})") from exc
-        return cls(layers, card)
+                for i in range(n):
+                    for key in (f"w{i}", f"b{i}"):
+                        if key not in data.files:
+                            raise PolicyFileError(f"{npz_path}: field {key!r} missing")
+                    layers.append((data[f"w{i}"], data[f"b{i}"]))
+        except PolicyFileError:
+            raise
+        except (ValueError, OSError, EOFError, KeyError, zipfile.BadZipFile) as exc:
+            raise PolicyFileError(f"{npz_path}: not a readable .npz ({exc})") from exc
+        width = len(layout)
+        for i, (w, b) in enumerate(layers):
+            for key, arr in ((f"w{i}", w), (f"b{i}", b)):
+                if not np.issubdtype(arr.dtype, np.floating):
+                    raise PolicyFileError(
+                        f"{npz_path}: field {key!r} has dtype {arr.dtype}, expected float"
+                    )
+                if not np.all(np.isfinite(arr)):
+                    raise PolicyFileError(f"{npz_path}: field {key!r} contains NaN or inf")
+            out = 3 if i == n - 1 else w.shape[0] if w.ndim == 2 else -1
+            if w.ndim != 2 or w.shape[1] != width or (i == n - 1 and w.shape[0] != 3):
+                raise PolicyFileError(
+                    f"{npz_path}: field 'w{i}' has shape {w.shape}, expected ({out}, {width}) "
+                    f"for the card's {len(layout)} inputs ({card_path.name}: observation_layout)"
+                )
+            if w.shape[0] > _MAX_WIDTH:
+                raise PolicyFileError(f"{npz_path}: field 'w{i}' wider than {_MAX_WIDTH}")
+            if b.shape != (w.shape[0],):
+                raise PolicyFileError(
+                    f"{npz_path}: field 'b{i}' has shape {b.shape}, expected ({w.shape[0]},)"
+                )
+            width = w.shape[0]
+        try:
+            return cls(layers, card)
+        except PolicyFileError as exc:
+            raise PolicyFileError(f"{card_path}: {exc}") from exc
 
     def save(self, path: str | Path) -> Path:
         """Write `path` (.npz) and its card (.json). Returns the .npz path."""
@@ -95,14 +278,19 @@ class ConstraintAwarePolicy:
             arrays[f"w{i}"] = w.astype(np.float32)
             arrays[f"b{i}"] = b.astype(np.float32)
         np.savez(npz_path, **arrays)  # type: ignore[arg-type]
-        card = dict(self.card, format=CARD_FORMAT, observation_layout=list(OBSERVATION_LAYOUT))
+        card = dict(
+            self.card,
+            format=CARD_FORMAT,
+            observation_layout=list(self.observation_layout),
+            inputs=list(self.inputs),
+        )
         card["n_layers"] = len(self._weights)
         npz_path.with_suffix(".json").write_text(json.dumps(card, indent=2) + "\n")
         return npz_path
 
     # --- inference ------------------------------------------------------------------------
     def act_batch(self, obs: FloatArray) -> FloatArray:
-        """Deterministic actions for observations (N, 6): (N, 3), clipped to [-1, 1]."""
+        """Deterministic actions for observations (N, n_in): (N, 3), clipped to [-1, 1]."""
         h = obs
         last = len(self._weights) - 1
         for i, (w, b) in enumerate(zip(self._weights, self._biases, strict=True)):
@@ -111,16 +299,27 @@ class ConstraintAwarePolicy:
                 h = np.tanh(h)
         return np.clip(h, -1.0, 1.0)
 
-    def act(self, force_unit: ArrayLike, direction: ArrayLike) -> FloatArray:
+    def act(self, force_unit: ArrayLike, direction: ArrayLike, *extra: float) -> FloatArray:
         """Action (3,) in [-1, 1] for a unit (or zero) force and a unit motion direction.
 
-        force_unit: (3,) F/|F| or the zero vector, world frame; direction: (3,) unit d.
+        force_unit: (3,) F/|F| or the zero vector, world frame; direction: (3,) unit d;
+        extra: the layout's further inputs (zeros when not given).
         Raises InvalidInputError (a ValueError) naming the argument on NaN, inf or bad shape.
         """
         f = as_vector(force_unit, "force_unit")
         d = as_vector(direction, "direction")
-        obs = np.concatenate([f, d])[None, :]
+        rest = np.zeros(len(self.observation_layout) - 6)
+        rest[: len(extra)] = np.asarray(extra, dtype=float)[: rest.size]
+        obs = np.concatenate([f, d, rest])[None, :]
         return self.act_batch(obs)[0]
+
+    def session(self) -> DirectionUpdater:
+        """A fresh per-run updater (holds the previous step for history observations)."""
+        return DirectionUpdater(self)
+
+    def reset(self) -> None:
+        """Reset the state `update_direction` keeps between calls (start of a run)."""
+        self._session.reset()
 
     def update_direction(
         self,
@@ -128,29 +327,14 @@ class ConstraintAwarePolicy:
         direction: ArrayLike,
         force_offset: ArrayLike | None = None,
         threshold: float | None = None,
+        step_force: float | None = None,
     ) -> FloatArray:
-        """The next motion direction d_{t+1} (3,) from a raw wrist force and d_t (paper 3.4.2).
+        """d_{t+1} (3,): `DirectionUpdater.update_direction` on this policy's own session.
 
-        force: (3,) [N] measured force F_s, world frame; force_offset: (3,) [N] F_d recorded
-        after grasping (default zero); F = F_s - F_d. If |F| < threshold [N] (default: the
-        card's training threshold) the direction is returned unchanged.
+        force, force_offset: (3,) [N] F_s and F_d, world frame; direction: (3,) unit d_t.
+        Policies with history remember the previous call; `reset()` starts a new run.
         """
-        f = as_vector(force, "force")
-        d = as_vector(direction, "direction")
-        if force_offset is not None:
-            f = f - as_vector(force_offset, "force_offset")
-        thr = self.threshold if threshold is None else float(threshold)
-        if not np.isfinite(thr) or thr < 0:
-            raise InvalidInputError(f"threshold: must be finite and >= 0, got {threshold}")
-        norm_d = float(np.linalg.norm(d))
-        if norm_d < 1e-9:
-            raise InvalidInputError("direction: must be a non-zero vector")
-        d = d / norm_d
-        f_hat = normalize_force(f, thr)
-        if not np.any(f_hat):
-            return d
-        a = self.action_scale * self.act_batch(np.concatenate([f_hat, d])[None, :])[0]
-        return np.asarray(update_direction_rule(d, a))
+        return self._session.update_direction(force, direction, force_offset, threshold, step_force)
 
     @property
     def layers(self) -> list[tuple[FloatArray, FloatArray]]:
@@ -164,3 +348,46 @@ class ConstraintAwarePolicy:
     @property
     def metrics(self) -> dict[str, Any]:
         return dict(self.card.get("metrics", {}))
+
+
+def _read_card(path: Path) -> dict[str, Any]:
+    """The JSON card, checked field by field; PolicyFileError names the file and field."""
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise PolicyFileError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from exc
+    try:
+        card = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise PolicyFileError(f"{path}: not valid JSON ({exc})") from exc
+    except RecursionError as exc:
+        raise PolicyFileError(f"{path}: JSON nested too deeply") from exc
+    if not isinstance(card, dict):
+        raise PolicyFileError(f"{path}: the card must be a JSON object")
+    if card.get("format") != CARD_FORMAT:
+        raise PolicyFileError(
+            f"{path}: field 'format' is {card.get('format')!r}, not {CARD_FORMAT}"
+        )
+    layout = card.get("observation_layout")
+    if not isinstance(layout, list) or _layout_name(tuple(layout)) is None:
+        raise PolicyFileError(
+            f"{path}: field 'observation_layout' is none of this version's layouts ("
+            + ", ".join(OBSERVATIONS)
+            + ")"
+        )
+    n = card.get("n_layers")
+    if not isinstance(n, int) or isinstance(n, bool) or not 1 <= n <= _MAX_LAYERS:
+        raise PolicyFileError(f"{path}: field 'n_layers' must be an integer in [1, {_MAX_LAYERS}]")
+    env = card.get("env_config", {})
+    if not isinstance(env, dict):
+        raise PolicyFileError(f"{path}: field 'env_config' must be a JSON object")
+    scale = env.get("action_scale", 1.0)
+    if (
+        isinstance(scale, bool)
+        or not isinstance(scale, int | float)
+        or not (math.isfinite(scale) and scale > 0)
+    ):
+        raise PolicyFileError(
+            f"{path}: field 'env_config.action_scale' must be finite and > 0, got {scale!r}"
+        )
+    return card

@@ -16,7 +16,7 @@ import numpy as np
 
 from constraint_aware.bench.sweep import PAPER_OFFSETS, run_many, success_table, suite_specs
 from constraint_aware.control.simulate import RunSpec, run
-from constraint_aware.policy import ConstraintAwarePolicy, shipped_policy_path
+from constraint_aware.policy import ConstraintAwarePolicy, shipped_log_path
 from constraint_aware.sim.tasks import TASKS
 
 CONTROLLERS = ("policy", "classical", "projection", "fixed")
@@ -45,7 +45,7 @@ class BenchConfig:
 def learning(out: Path) -> dict[str, Any]:
     """The shipped policy's training log and card metrics (nothing is run)."""
     policy = ConstraintAwarePolicy.load()
-    log_src = shipped_policy_path().parent / "training_log.csv"
+    log_src = shipped_log_path(policy.name)
     log_dst = out / "training_log.csv"
     log_dst.write_text(log_src.read_text())
     with log_dst.open() as fh:
@@ -62,6 +62,8 @@ def learning(out: Path) -> dict[str, Any]:
         "final_angle_deg": {k: v["mean_final_angle_deg"] for k, v in metrics.items()},
         "p95_final_angle_deg": {k: v["p95_final_angle_deg"] for k, v in metrics.items()},
         "episodes": metrics.get("policy", {}).get("episodes"),
+        "policy": policy.name,
+        "observation_study": card.get("observation_study"),
     }
 
 
@@ -86,7 +88,13 @@ PAPER_RUNS: dict[str, RunSpec] = {
     "appendix_handle_policy_without_torque_policy": RunSpec(
         "handle-rotating", "policy", 15.0, torque_policy=False
     ),
+    # the appendix's claim is about the paper's policy: run it too
+    "appendix_handle_paper_policy_without_torque_policy": RunSpec(
+        "handle-rotating", "policy", 15.0, torque_policy=False
+    ),
 }
+#: Runs of the paper's policy (`load("paper")`); every other policy run uses the default.
+PAPER_POLICY_RUNS = frozenset({"appendix_handle_paper_policy_without_torque_policy"})
 FIG6 = ("fig6_drawer_+30_policy", "fig6_drawer_-30_policy")
 FIG11 = "fig6_drawer_-30_policy"  # |F| over time (paper fig. 11 is drawer-opening)
 FIG12 = "fig9_door_policy"  # the door's trajectory with d and F arrows
@@ -97,7 +105,8 @@ def paper_experiments(out: Path, render: bool = True) -> dict[str, Any]:
     records_dir = out / "records"
     results: dict[str, Any] = {}
     for name, spec in PAPER_RUNS.items():
-        record, sim = run(spec)
+        paper_policy = ConstraintAwarePolicy.load("paper") if name in PAPER_POLICY_RUNS else None
+        record, sim = run(spec, policy=paper_policy)
         record.save(records_dir / f"{name}.json")
         summary = record.summary()
         angles = np.array(record.angles)
@@ -210,28 +219,32 @@ def _scaled(factor: Factor, task: str, level: float) -> float:
 
 
 def sensitivity(cfg: BenchConfig) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    specs: list[RunSpec] = []
+    """Each factor's levels on its tasks. Results are matched to their cells by the run's own
+    spec (a spec may serve several cells, e.g. the preset), never by the order of the runs."""
+    cells: dict[RunSpec, list[tuple[str, str, str, float]]] = {}
     for f in FACTORS:
         for task in f.tasks:
             for ctrl in CONTROLLERS:
                 for level in f.levels:
                     for seed in range(cfg.sensitivity_seeds):
                         s = f.spec(task, ctrl, _scaled(f, task, level), seed)
-                        specs.append(s)
-    runs = run_many(specs, cfg.workers, label="sensitivity")
+                        cells.setdefault(s, []).append((f.name, task, ctrl, level))
+    runs = run_many(list(cells), cfg.workers, label="sensitivity")
+    rows: dict[tuple[str, str, str, float], list[dict[str, Any]]] = {}
+    for r in runs:
+        for key in cells[RunSpec(**r["spec"])]:
+            rows.setdefault(key, []).append(r["summary"])
     out: dict[str, Any] = {}
-    i = 0
     for f in FACTORS:
         entry: dict[str, Any] = {"unit": f.unit, "levels": list(f.levels), "tasks": {}}
         for task in f.tasks:
             for ctrl in CONTROLLERS:
                 succ, peaks, finals = [], [], []
-                for _level in f.levels:
-                    rows = [r["summary"] for r in runs[i : i + cfg.sensitivity_seeds]]
-                    i += cfg.sensitivity_seeds
-                    succ.append(float(np.mean([x["success"] for x in rows])))
-                    peaks.append(float(np.median([x["peak_force_N"] for x in rows])))
-                    finals.append(float(np.nanmedian([x["final_angle_deg"] for x in rows])))
+                for level in f.levels:
+                    cell = rows[(f.name, task, ctrl, level)]
+                    succ.append(float(np.mean([x["success"] for x in cell])))
+                    peaks.append(float(np.median([x["peak_force_N"] for x in cell])))
+                    finals.append(float(np.nanmedian([x["final_angle_deg"] for x in cell])))
                 entry["tasks"].setdefault(task, {})[ctrl] = {
                     "success_rate": succ,
                     "peak_force_median_N": peaks,

@@ -5,11 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.image import imread
 
 from constraint_aware.bench.experiments import FIG6, FIG11, FIG12
 from constraint_aware.control.plots import plot_trajectory
@@ -49,13 +47,13 @@ def fig_learning(out: Path, results: dict[str, Any]) -> str:
 
 
 def fig6(out: Path, results: dict[str, Any]) -> str:
-    fig = plt.figure(figsize=(10, 7))
+    fig = Figure(figsize=(10, 7))
     for i, name in enumerate(FIG6):
         info = results["paper"][name]
         ax = fig.add_subplot(2, 2, i + 1)
         snap = info.get("snapshot")
         if snap and (out / snap).is_file():
-            ax.imshow(plt.imread(out / snap))
+            ax.imshow(imread(out / snap))
         ax.axis("off")
         ax.set_title(f"offset {info['offset_deg']:+.0f} deg: {info['outcome']}", fontsize=10)
         ax2 = fig.add_subplot(2, 2, i + 3)
@@ -71,7 +69,8 @@ def fig6(out: Path, results: dict[str, Any]) -> str:
 
 def fig78(out: Path, results: dict[str, Any]) -> str:
     tasks = ("drawer", "plate", "pole")
-    fig, axes = plt.subplots(2, 3, figsize=(12, 6), sharex=True)
+    fig = Figure(figsize=(12, 6))
+    axes = fig.subplots(2, 3, sharex=True)
     for j, task in enumerate(tasks):
         for ctrl in ("classical", "policy"):
             _curves(axes[0, j], axes[1, j], _record(out, results, f"fig78_{task}_{ctrl}"), ctrl)
@@ -87,7 +86,8 @@ def fig78(out: Path, results: dict[str, Any]) -> str:
 
 
 def fig9(out: Path, results: dict[str, Any]) -> str:
-    fig, axes = plt.subplots(2, 2, figsize=(10, 6), sharex="col")
+    fig = Figure(figsize=(10, 6))
+    axes = fig.subplots(2, 2, sharex="col")
     for j, task in enumerate(("door", "handle")):
         for ctrl in ("classical", "policy"):
             _curves(axes[0, j], axes[1, j], _record(out, results, f"fig9_{task}_{ctrl}"), ctrl)
@@ -107,7 +107,8 @@ def fig9(out: Path, results: dict[str, Any]) -> str:
 
 def fig11(out: Path, results: dict[str, Any]) -> str:
     rec = _record(out, results, FIG11)
-    fig, (ax_a, ax_f) = plt.subplots(2, 1, figsize=(6.4, 5), sharex=True)
+    fig = Figure(figsize=(6.4, 5))
+    ax_a, ax_f = fig.subplots(2, 1, sharex=True)
     t = [0.1 * s.step for s in rec.steps]
     ax_a.plot(t, rec.angles, "o-", ms=3)
     ax_a.set_ylabel("angle to (1, 0, 0) [deg]")
@@ -131,7 +132,8 @@ def fig_heatmap(out: Path, results: dict[str, Any]) -> str:
     hm = results["heatmap"]
     ctrls = list(next(iter(hm["success_rate"].values())))
     tasks = list(hm["success_rate"])
-    fig, axes = plt.subplots(1, len(ctrls), figsize=(4 * len(ctrls), 3.6), sharey=True)
+    fig = Figure(figsize=(4 * len(ctrls), 3.6))
+    axes = fig.subplots(1, len(ctrls), sharey=True)
     for ax, ctrl in zip(np.atleast_1d(axes), ctrls, strict=True):
         grid = np.array([hm["success_rate"][t][ctrl] for t in tasks])
         im = ax.imshow(grid, vmin=0, vmax=1, cmap="RdYlGn", aspect="auto")
@@ -147,14 +149,14 @@ def fig_heatmap(out: Path, results: dict[str, Any]) -> str:
     fig.colorbar(im, ax=axes, shrink=0.8, label="success rate")
     fig.suptitle(f"Success over the initial direction error ({hm['seeds']} seeds per cell)")
     fig.savefig(out / "fig_heatmap_offsets.png", dpi=100, bbox_inches="tight")
-    plt.close(fig)
     return "fig_heatmap_offsets.png"
 
 
 def fig_sensitivity(out: Path, results: dict[str, Any]) -> str:
     sens = results["sensitivity"]
     names = list(sens)
-    fig, axes = plt.subplots(2, len(names), figsize=(3.3 * len(names), 5.6))
+    fig = Figure(figsize=(3.3 * len(names), 5.6))
+    axes = fig.subplots(2, len(names))
     for j, name in enumerate(names):
         entry = sens[name]
         levels = entry["levels"]
@@ -190,7 +192,8 @@ def fig_peak_forces(out: Path, results: dict[str, Any]) -> str:
     samples = results["headline"]["peak_force_samples"]
     tasks = list(samples)
     ctrls = list(next(iter(samples.values())))
-    fig, ax = plt.subplots(figsize=(11, 4))
+    fig = Figure(figsize=(11, 4))
+    ax = fig.subplots()
     width = 0.8 / len(ctrls)
     for k, ctrl in enumerate(ctrls):
         data = [samples[t][ctrl] for t in tasks]

@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from constraint_aware.bench.analysis import CellSummary, PolicySection
 from constraint_aware.bench.placement import report_lines as placement_report_lines
 
 
@@ -67,6 +68,24 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
         "so this is about the best such a policy can do; `oracle` knows the friction.\n"
     )
 
+    study = le.get("observation_study")
+    if study:
+        add("### Why this observation (issue 9's study, recorded in the policy's card)\n")
+        add(
+            "| observation | standard mean [deg] | with resistance mean [deg] | "
+            "probe worst [deg] | closed loop successes | median peak [N] | mean F [N] |\n"
+            + "|---" * 7
+            + "|"
+        )
+        for row in study["rows"]:
+            add(
+                f"| {row['observation']} | {_f(row['standard_mean_deg'], 2)} | "
+                f"{_f(row['resistance_mean_deg'], 2)} | {_f(row['probe_worst_deg'], 1)} | "
+                f"{row['closed_loop_successes']}/{row['closed_loop_runs']} | "
+                f"{_f(row['closed_loop_median_peak_N'])} | {_f(row['closed_loop_mean_force_N'])} |"
+            )
+        add(f"\nChosen: `{study['chosen']}`. {study['reason']}\n")
+
     # 2. fig 6
     paper = results["paper"]
     add(f"## Drawer-opening with direction errors (paper fig. {figs['drawer']})\n")
@@ -102,7 +121,9 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
     for name, s in paper.items():
         if name.startswith(("fig9_", "appendix_")):
             label = dict(s)
-            if name.startswith("appendix_"):
+            if name.startswith("appendix_handle_paper_policy"):
+                label["controller"] = "paper policy without torque policy"
+            elif name.startswith("appendix_"):
                 label["controller"] = "policy without torque policy"
             add(_outcome_row(name, label))
     add("")
@@ -194,11 +215,56 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
                 f"{_f(w['peak_force_N'])} | {cond} |"
             )
         add("")
+    if "policy_section" in results:
+        lines.extend(policy_section_lines(PolicySection.from_dict(results["policy_section"])))
     if results.get("faults"):
         _faults_section(add, results["faults"])
     path = out / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def _cell(c: CellSummary) -> str:
+    return f"{c.successes}/{c.n}, {_f(c.median_peak_force_N)}, {_f(c.mean_force_N)}"
+
+
+def _table(cells: list[CellSummary], first: str, key: Any) -> list[str]:
+    ctrls = list(dict.fromkeys(c.controller for c in cells))
+    rows: dict[Any, dict[str, CellSummary]] = {}
+    for c in cells:
+        rows.setdefault(key(c), {})[c.controller] = c
+    n_keys = first.count("|") + 1
+    out = [f"| {first} | " + " | ".join(ctrls) + " |", "|---" * (len(ctrls) + n_keys) + "|"]
+    for k, row in rows.items():
+        label = " | ".join(str(x) for x in k) if isinstance(k, tuple) else str(k)
+        out.append(
+            f"| {label} | " + " | ".join(_cell(row[c]) if c in row else "" for c in ctrls) + " |"
+        )
+    return out
+
+
+def policy_section_lines(sec: PolicySection) -> list[str]:
+    """The policy section: the paper's policy, the default policy, classical, projection."""
+    lines = ["## Policies: paper vs default vs classical vs projection\n"]
+    lines.append(
+        f"Every controller runs with the dead band derived from the sensor noise "
+        f"({_f(sec.sensor_noise_N, 1)} N per axis: {_f(sec.threshold_N, 1)} N), not a hand-set "
+        "one. Cells: successes / runs, median peak |F| [N], mean |F| [N].\n"
+    )
+    if sec.suite:
+        lines.append("### Randomized suite\n")
+        lines.extend(_table(sec.suite, "task", lambda c: c.task))
+        lines.append("")
+    lines.append("### The paper's offsets\n")
+    lines.extend(_table(sec.paper_offsets, "task", lambda c: c.task))
+    lines.append("\n### Resistance map (paper offsets)\n")
+    lines.extend(
+        _table(
+            sec.resistance, "factor | level | task", lambda c: (c.axis, _fmt_level(c.level), c.task)
+        )
+    )
+    lines.append("")
+    return lines
 
 
 def _fmt_level(v: float) -> str:

@@ -12,6 +12,7 @@ import numpy as np
 
 from constraint_aware.bench import experiments as ex
 from constraint_aware.bench import placement
+from constraint_aware.bench.analysis import policy_section
 from constraint_aware.bench.embodiment import for_bench as embodiment_for_bench
 from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite
 from constraint_aware.bench.figures import draw_all
@@ -169,6 +170,7 @@ def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
         _first_failures(sens)
         results["sensitivity"] = sens
         all_runs += hm_runs + sens_runs
+    results["policy_section"] = policy_section(quick).to_dict()
     results["faults"] = fault_suite(
         FAULT_BENCH_TASKS_QUICK if quick else tuple(TASKS), QUICK_FAULTS if quick else tuple(FAULTS)
     ).to_dict()

@@ -89,15 +89,25 @@ class ProjectionController(_Base):
 
 
 class PolicyController(_Base):
-    """The constraint-aware policy (paper 3.3): d <- (d + pi(F^, d)) / |d + pi(F^, d)|."""
+    """The constraint-aware policy (paper 3.3): d <- (d + pi(s)) / |d + pi(s)|.
+
+    s is the policy card's observation: (F^, d), plus the previous step's for history
+    policies (a fresh session per run) or |F|/(k*delta) from the robot's step force.
+    """
 
     name = "policy"
 
     def __init__(self, policy: ConstraintAwarePolicy | None = None) -> None:
         self.policy = policy or ConstraintAwarePolicy.load()
+        self.session = self.policy.session()
+
+    def reset(self, direction: FloatArray) -> None:
+        self.session.reset()
 
     def next_direction(self, inp: ControlInput) -> FloatArray:
-        return self.policy.update_direction(inp.force, inp.direction, threshold=inp.threshold)
+        return self.session.update_direction(
+            inp.force, inp.direction, threshold=inp.threshold, step_force=inp.step_force
+        )
 
 
 def make_controller(

@@ -9,7 +9,7 @@ import numpy as np
 
 from constraint_aware.envs import SINGLE_SYSTEM_ID
 from constraint_aware.errors import UnknownNameError
-from constraint_aware.training.batch import ACT_DIM, OBS_DIM, SingleSystemBatch
+from constraint_aware.training.batch import ACT_DIM, SingleSystemBatch, observation_space
 from constraint_aware.training.config import EnvConfig
 from constraint_aware.training.physics import (
     ForceModel,
@@ -43,12 +43,17 @@ class SingleSystemEnv(gym.Env[np.ndarray, np.ndarray]):
     Each step the hand is commanded `step_length` along d from the body's pose; the body slides
     along u only, against Coulomb friction; the guide's force F on the body results.
 
-    Observation (6,): (F/|F|, d), world frame. |F| (times the sensor gain) below `threshold`
-        is observed as the zero vector. Gaussian noise (std `force_noise`, `direction_noise`)
+    Resistance (issue 9, `EnvConfig` documents the ranges): the object's own dry friction,
+    damping, inertia and a released grasp preload along the joint; none by default.
+
+    Observation: `config.observation` (policy.OBSERVATIONS), (F/|F|, d) in R^6 for the paper,
+        world frame. |F| (times the sensor gain) below `threshold` is observed as the zero
+        vector. Gaussian noise (std `force_noise`, `direction_noise`)
         perturbs the observed F/|F| and d at the first observation (then renormalized).
     Action (3,) in [-1, 1]: a = action_scale * action; d <- (d + a)/|d + a| (kept when
         |d + a| ~ 0).
-    Reward: -|F| / (k * step_length), the dimensionless constraint force after the move.
+    Reward: -|F + R u| / (k * step_length), the dimensionless constraint force beyond the
+        object's own resistance R along u after the move (-|F| / (k * step_length) without it).
     Episode end: terminated after `episode_length` (T = 5) actions. `info["final_angle_deg"]`
         is then the angle between d and u.
     """
@@ -59,7 +64,7 @@ class SingleSystemEnv(gym.Env[np.ndarray, np.ndarray]):
         self.config = config or EnvConfig()
         self.backend = backend
         self._batch = SingleSystemBatch(1, self.config, make_force_model(backend, self.config))
-        self.observation_space = gym.spaces.Box(-1.0, 1.0, shape=(OBS_DIM,), dtype=np.float32)
+        self.observation_space = observation_space(self.config)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(ACT_DIM,), dtype=np.float32)
 
     def _info(self) -> dict[str, Any]:

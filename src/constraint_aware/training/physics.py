@@ -2,13 +2,16 @@
 
 Both answer the same question for a batch of N bodies: the hand, a spring of stiffness k, is
 commanded `step_length` along the unit direction d from the body's current position; the body
-can only slide along the unit joint axis u, against Coulomb friction mu. What force F does the
-guide exert on the body? F is what a wrist sensor reads as the environment's force on the hand
-under the single-system condition.
+can only slide along the unit joint axis u, against Coulomb friction mu and the object's own
+along-axis resistance R >= 0 (dry joint friction, and the viscous and inertial forces of the
+step, which the episode computes from its kinematics). What force F does the guide exert on the
+body? F is what a wrist sensor reads as the environment's force on the hand under the
+single-system condition.
 
 Decompose the spring force k*step*d into a drive along the axis t = k*step*(d.u) and a push
-across it p = k*step*(d - (d.u)u). The guide answers -p (normal force) plus friction along u:
-sliding, |t| > mu*|p|: friction = -sign(t)*mu*|p|; sticking: friction = -t (it holds the body).
+across it p = k*step*(d - (d.u)u). The guide answers -p (normal force) plus a force along u
+limited by L = mu*|p| + R: sliding, |t| > L: -sign(t)*L (the body moves and the spring's
+remaining stretch along u balances L); sticking: -t (it holds the body).
 """
 
 from __future__ import annotations
@@ -22,7 +25,8 @@ from constraint_aware.geometry import FloatArray
 
 
 class ForceModel(Protocol):
-    """Maps a batch of (axis, direction, friction, stiffness) to the guide's force F: (N, 3) [N]."""
+    """Maps a batch of (axis, direction, friction, stiffness, resistance) to the guide's force
+    F: (N, 3) [N]."""
 
     def __call__(
         self,
@@ -31,6 +35,7 @@ class ForceModel(Protocol):
         friction: FloatArray,
         stiffness: FloatArray,
         step_length: float,
+        resistance: FloatArray | None = None,
     ) -> FloatArray: ...
 
 
@@ -40,11 +45,13 @@ def analytic_constraint_force(
     friction: FloatArray,
     stiffness: FloatArray,
     step_length: float,
+    resistance: FloatArray | None = None,
 ) -> FloatArray:
     """Quasi-static guide force, batched.
 
     axis, direction: (N, 3) unit vectors; friction: (N,) [-]; stiffness: (N,) [N/m];
-    step_length [m]. Returns F: (N, 3) [N], world frame, force of the guide on the body.
+    step_length [m]; resistance: (N,) [N] >= 0 along-axis resistance (default none).
+    Returns F: (N, 3) [N], world frame, force of the guide on the body.
     """
     scale = (stiffness * step_length)[:, None]
     along = np.sum(direction * axis, axis=1, keepdims=True)
@@ -52,6 +59,8 @@ def analytic_constraint_force(
     drive = scale * along
     normal = np.linalg.norm(push, axis=1, keepdims=True)
     limit = friction[:, None] * normal
+    if resistance is not None:
+        limit = limit + resistance[:, None]
     friction_force = np.where(np.abs(drive) > limit, -np.sign(drive) * limit, -drive)
     return -push + friction_force * axis
 
@@ -79,7 +88,9 @@ class MujocoConstraintForce:
 
     The hand spring (stiffness k, damping from `damping_ratio`) is applied as an external
     force on the body each substep; since the body cannot leave the axis, the push across it is
-    constant over a step and sets the Coulomb friction of the joint (`frictionloss = mu*|p|`).
+    constant over a step and sets the Coulomb friction of the joint (`frictionloss = mu*|p|`,
+    plus the along-axis resistance R: MuJoCo's dry joint friction is the same stick-or-slide
+    limit).
     The guide's force is read from a `force` sensor (the parent-to-body interaction force)
     `substeps` x 2 ms after the command: MuJoCo's friction is soft, and waiting for full
     settling lets the body creep and the friction fade. The friction constraint is made as
@@ -107,6 +118,7 @@ class MujocoConstraintForce:
         friction: FloatArray,
         stiffness: FloatArray,
         step_length: float,
+        resistance: FloatArray | None = None,
     ) -> FloatArray:
         out = np.empty_like(direction)
         m, d = self.model, self.data
@@ -119,7 +131,8 @@ class MujocoConstraintForce:
             push = k * step_length * (direction[i] - along * u)
             target = step_length * along  # commanded position projected on the axis
             m.jnt_axis[self._joint] = u
-            m.dof_frictionloss[self._dof] = float(friction[i]) * float(np.linalg.norm(push))
+            extra = 0.0 if resistance is None else float(resistance[i])
+            m.dof_frictionloss[self._dof] = float(friction[i]) * float(np.linalg.norm(push)) + extra
             mujoco.mj_resetData(m, d)
             for _ in range(self.substeps):
                 q = d.qpos[self._qpos]

@@ -10,6 +10,7 @@ import csv
 import dataclasses
 import importlib.util
 import json
+import math
 import platform
 import time
 import zipfile
@@ -29,11 +30,19 @@ from stable_baselines3.common.vec_env import VecEnv
 
 import constraint_aware
 from constraint_aware.errors import CapError, InvalidInputError, PolicyFileError, UnknownNameError
-from constraint_aware.policy import ConstraintAwarePolicy
-from constraint_aware.training.config import EnvConfig
+from constraint_aware.policy import (
+    OBSERVATION_INPUTS,
+    OBSERVATIONS,
+    ConstraintAwarePolicy,
+    dead_band_card,
+)
+from constraint_aware.training.config import EnvConfig, resistance_config
 from constraint_aware.training.evaluate import evaluate
 from constraint_aware.training.reference import reference_controllers
 from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
+
+#: The observation of the default policy, chosen by benchmarks/observation_study.py.
+DEFAULT_OBSERVATION = "magnitude"
 
 LOG_COLUMNS = (
     "timesteps",
@@ -73,6 +82,47 @@ class TrainConfig:
     tensorboard: str | None = None  # dir for TensorBoard events + progress.csv (SB3 logger)
 
     def __post_init__(self) -> None:
+        def bad(name: str, rule: str) -> InvalidInputError:
+            return InvalidInputError(f"TrainConfig.{name}: {rule}, got {getattr(self, name)!r}")
+
+        def is_int(value: object) -> bool:
+            return isinstance(value, int) and not isinstance(value, bool)
+
+        for name in (
+            "total_timesteps",
+            "n_envs",
+            "batch_size",
+            "n_epochs",
+            "eval_every",
+            "eval_episodes",
+            "torch_threads",
+        ):
+            if not is_int(getattr(self, name)) or getattr(self, name) < 1:
+                raise bad(name, "must be an integer >= 1")
+        if not is_int(self.seed) or self.seed < 0:
+            raise bad("seed", "must be an integer >= 0")
+        rollout = self.n_envs * self.env.episode_length
+        if self.batch_size > rollout:
+            raise bad("batch_size", f"must be <= the rollout batch n_envs * T = {rollout}")
+        if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
+            raise bad("learning_rate", "must be finite and > 0")
+        for name in ("gamma", "gae_lambda"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise bad(name, "must lie in [0, 1]")
+        if not (math.isfinite(self.clip_range) and self.clip_range > 0):
+            raise bad("clip_range", "must be finite and > 0")
+        if not (math.isfinite(self.ent_coef) and self.ent_coef >= 0):
+            raise bad("ent_coef", "must be finite and >= 0")
+        if not math.isfinite(self.log_std_init):
+            raise bad("log_std_init", "must be finite")
+        if not self.net_arch or not all(is_int(w) and w >= 1 for w in self.net_arch):
+            raise bad("net_arch", "must be a non-empty tuple of integers >= 1")
+        for name in ("target_angle_deg", "time_budget_s"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise bad(name, "must be None or finite and > 0")
+        if not isinstance(self.env, EnvConfig):
+            raise bad("env", "must be an EnvConfig")
         if self.resume is not None and not Path(self.resume).is_file():
             raise InvalidInputError(
                 f"TrainConfig.resume: no SB3 checkpoint (model.zip of cap train) at {self.resume!r}"
@@ -94,6 +144,9 @@ PRESETS: dict[str, TrainConfig] = {
     "fast": TrainConfig(),
     # The paper's reported values (5.1): batch 6000, learning rate 5e-5. The paper does not give
     # the minibatch; 60 divides 6000 and is closest to SB3's default of 64.
+    # The default policy (issue 9): the fast preset in the environment with the object's own
+    # resistance (training.config.RESISTANCE); the observation is set by the study.
+    "default": TrainConfig(preset="default", env=resistance_config(DEFAULT_OBSERVATION)),
     "paper": TrainConfig(
         preset="paper",
         total_timesteps=6_000_000,
@@ -110,6 +163,11 @@ def make_config(preset: str = "fast", **overrides: Any) -> TrainConfig:
     if preset not in PRESETS:
         raise UnknownNameError("preset", preset, list(PRESETS))
     return dataclasses.replace(PRESETS[preset], **overrides)
+
+
+def observation_card(env: EnvConfig) -> dict[str, Any]:
+    """The card fields that say what a policy of `env`'s observation reads."""
+    return {"observation_layout": list(OBSERVATIONS[env.observation]), "env_config": env.to_dict()}
 
 
 def export_policy(model: BaseAlgorithm, card: dict[str, Any]) -> ConstraintAwarePolicy:
@@ -179,7 +237,7 @@ class EvalCallback(BaseCallback):
 
     def evaluate_now(self) -> None:
         cfg = self.config
-        policy = export_policy(self.model, {})
+        policy = export_policy(self.model, observation_card(cfg.env))
         result = evaluate(
             lambda obs, _friction: policy.act_batch(obs),
             cfg.env,
@@ -344,8 +402,9 @@ def train(
     metrics["policy"] = evaluate(
         lambda obs, _f: best.act_batch(obs), config.env, episodes=final_eval_episodes
     ).to_dict()
-    card = {
-        "description": "Constraint-aware policy (Saito et al.): (F/|F|, d) -> direction update",
+    card: dict[str, Any] = {
+        "description": "Constraint-aware policy (Saito et al.): "
+        + f"{config.env.observation} observation -> direction update",
         "units": {
             "force_unit": "dimensionless unit vector (or zero below threshold), world frame",
             "direction": "dimensionless unit vector, world frame",
@@ -361,7 +420,20 @@ def train(
         "target_reached_s": callback.target_reached_s,
         "metrics": metrics,
         "versions": library_versions(),
+        **observation_card(config.env),
+        "inputs": list(OBSERVATION_INPUTS[config.env.observation]),
+        "dead_band": dead_band_card(),
     }
+    if config.env.has_resistance:
+        # the paper's resistance-free test set too: the standard evaluation's bar applies there
+        standard = dataclasses.replace(EnvConfig(), observation=config.env.observation)
+        card["metrics_standard"] = {
+            name: evaluate(ctrl, standard, episodes=final_eval_episodes).to_dict()
+            for name, ctrl in {
+                **reference_controllers(standard),
+                "policy": lambda obs, _f: best.act_batch(obs),
+            }.items()
+        }
     policy = best.with_card(card)
     path = None
     if out_dir is not None:

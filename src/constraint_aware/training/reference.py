@@ -1,6 +1,7 @@
 """Reference direction controllers on the training observation, batched.
 
-Each maps observations (N, 6) = (F/|F|, d) and the guide friction (N,) to actions (N, 3).
+Each maps observations (N, >= 6) starting with (F/|F|, d), and the guide friction (N,), to
+actions (N, 3).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ def noop(obs: FloatArray, friction: FloatArray) -> FloatArray:
 
 def projection(obs: FloatArray, friction: FloatArray) -> FloatArray:
     """a = -(d.F^)F^: remove the part of d along the force. Exact without friction and noise."""
-    f_hat, d = obs[:, :3], obs[:, 3:]
+    f_hat, d = obs[:, :3], obs[:, 3:6]
     return -np.sum(d * f_hat, axis=1, keepdims=True) * f_hat
 
 
@@ -33,7 +34,7 @@ def friction_oracle(obs: FloatArray, friction: FloatArray) -> FloatArray:
     direction w perpendicular to F^ in span(d, F^) is u rotated by atan(mu), and
     u = cos(phi) w - sin(phi) F^. With a zero (below-threshold) force it keeps d.
     """
-    f_hat, d = obs[:, :3], obs[:, 3:]
+    f_hat, d = obs[:, :3], obs[:, 3:6]
     w = unit(d - np.sum(d * f_hat, axis=1, keepdims=True) * f_hat)
     phi = np.arctan(friction)[:, None]
     u_est = np.cos(phi) * w - np.sin(phi) * f_hat

@@ -10,7 +10,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnvObs, VecEnvStepReturn
 
-from constraint_aware.training.batch import ACT_DIM, OBS_DIM, SingleSystemBatch
+from constraint_aware.training.batch import ACT_DIM, SingleSystemBatch, observation_space
 from constraint_aware.training.config import EnvConfig
 
 
@@ -20,9 +20,9 @@ class BatchedSingleSystemVecEnv(VecEnv):
     render_mode = None  # SB3 reads it through get_attr
 
     def __init__(self, n_envs: int, config: EnvConfig | None = None, seed: int = 0) -> None:
-        observation_space = gym.spaces.Box(-1.0, 1.0, shape=(OBS_DIM,), dtype=np.float32)
+        obs_space = observation_space(config or EnvConfig())
         action_space = gym.spaces.Box(-1.0, 1.0, shape=(ACT_DIM,), dtype=np.float32)
-        super().__init__(n_envs, observation_space, action_space)
+        super().__init__(n_envs, obs_space, action_space)
         self.batch = SingleSystemBatch(n_envs, config)
         self._rng = np.random.default_rng(seed)
         self._actions = np.zeros((n_envs, ACT_DIM))
