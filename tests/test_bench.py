@@ -108,6 +108,25 @@ def test_replot_of_a_missing_dir_is_a_clear_error(tmp_path: Path) -> None:
     assert "results.json" in proc.stderr
 
 
+@pytest.mark.parametrize(
+    "content",
+    [b"", b'{"meta": {"quick": tru', b"\xff\xfe not utf-8", b"[" * 100_000, b'{"meta": 3}'],
+    ids=["empty", "truncated", "not-utf8", "deeply-nested", "not-a-bench"],
+)
+def test_replot_of_a_corrupted_results_file_is_a_clear_error(
+    tmp_path: Path, content: bytes
+) -> None:
+    (tmp_path / "results.json").write_bytes(content)
+    proc = subprocess.run(
+        [sys.executable, "-m", "constraint_aware.cli", "bench", "--replot", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2
+    assert "results.json" in proc.stderr and "Traceback" not in proc.stderr
+
+
 def test_policy_section_summaries_do_not_depend_on_run_order() -> None:
     import random
 

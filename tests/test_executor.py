@@ -385,7 +385,9 @@ def test_derived_threshold_is_recorded() -> None:
     rec = Executor(robot, FixedDirection(), ExecutorConfig(threshold=None, max_steps=2)).run(U)
     assert rec.threshold == pytest.approx(MIN_THRESHOLD)  # a noise-free fake: the floor
     rec = Executor(FakeGuide(), FixedDirection(), ExecutorConfig(max_steps=2)).run(U)
-    assert rec.threshold == 3.0
+    assert rec.threshold == pytest.approx(MIN_THRESHOLD)  # derived is the default
+    cfg = ExecutorConfig(threshold=3.0, max_steps=2)
+    assert Executor(FakeGuide(), FixedDirection(), cfg).run(U).threshold == 3.0
 
 
 def test_record_is_strict_json_and_round_trips(tmp_path: Path) -> None:

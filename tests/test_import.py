@@ -10,10 +10,6 @@ from pathlib import Path
 
 import pytest
 
-# Modules that other work still has to fix; each one is checked below as a strict xfail, so the
-# test fails (and this entry must go) as soon as the module is clean.
-KNOWN_OFFENDERS: dict[str, str] = {}
-
 PROBE = r"""
 import json, os, pkgutil, sys
 import matplotlib
@@ -54,14 +50,8 @@ def test_importing_every_module_leaves_environment_and_backend_alone() -> None:
     changes = probe()
     assert "constraint_aware.sim.render" in changes  # the walk reached the subpackages
     assert len(changes) > 30
-    dirty = {m: c for m, c in changes.items() if c and m not in KNOWN_OFFENDERS}
+    dirty = {m: c for m, c in changes.items() if c}
     assert dirty == {}
-
-
-@pytest.mark.parametrize("module", sorted(KNOWN_OFFENDERS))
-@pytest.mark.xfail(strict=True, reason="known offender, see KNOWN_OFFENDERS")
-def test_known_offender_is_clean(module: str) -> None:
-    assert probe(module)[module] == []
 
 
 def test_import_package_sets_only_gymnasiums_own_variable() -> None:

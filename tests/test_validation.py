@@ -24,7 +24,7 @@ EXECUTOR_BAD: list[tuple[str, Any]] = [
     ("force_limit", NAN),
     ("force_limit", INF),
     ("force_limit", 0.0),
-    ("force_limit", 2.0),  # below the 3 N threshold
+    ("force_limit", 0.1),  # below the derived dead band's 0.2 N floor
     ("step_length", NAN),
     ("step_length", 0.5),
     ("step_length", -0.01),
@@ -72,7 +72,7 @@ def test_message_states_the_valid_range() -> None:
                        r"\(0, 0\.05\] \[m\]"):  # fmt: skip
         ExecutorConfig(step_length=0.5)
     with pytest.raises(ConfigError, match=r"force_limit = 2\.0: must be > threshold \(3 N\)"):
-        ExecutorConfig(force_limit=2.0)
+        ExecutorConfig(force_limit=2.0, threshold=3.0)
 
 
 def test_workplane_normal_is_normalized() -> None:

@@ -71,15 +71,29 @@ def _first_failures(sens: dict[str, Any]) -> None:
         entry["first_failure_task"] = where
 
 
-def is_previous_bench(out_dir: Path) -> bool:
-    """Whether `out_dir` holds a previous bench: a results.json in this bench's format."""
+def load_results(out_dir: Path) -> dict[str, Any]:
+    """DIR/results.json of a previous bench; CapError naming the file when it is missing,
+    not UTF-8, not JSON (or nested beyond the parser's depth) or not in this bench's format."""
     path = out_dir / RESULTS
     try:
         results = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError):
-        return False
+    except FileNotFoundError as exc:
+        raise CapError(f"{path} not found: run `cap bench --out {out_dir}` first") from exc
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise CapError(f"{path}: not a readable JSON file ({type(exc).__name__})") from exc
     meta = results.get("meta") if isinstance(results, dict) else None
-    return isinstance(meta, dict) and "quick" in meta and "paper_figures" in meta
+    if not (isinstance(meta, dict) and "quick" in meta and "paper_figures" in meta):
+        raise CapError(f"{path}: not the results of `cap bench` (no meta.quick/paper_figures)")
+    return results
+
+
+def is_previous_bench(out_dir: Path) -> bool:
+    """Whether `out_dir` holds a previous bench: a results.json in this bench's format."""
+    try:
+        load_results(out_dir)
+    except CapError:
+        return False
+    return True
 
 
 def check_out_dir(out_dir: Path, force: bool = False) -> None:
@@ -186,9 +200,6 @@ def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
 def replot(out: str | Path) -> Path:
     """Redraw every figure and the report from DIR/results.json (nothing is re-run)."""
     out_dir = Path(out)
-    path = out_dir / RESULTS
-    if not path.is_file():
-        raise CapError(f"{path} not found: run `cap bench --out {out_dir}` first")
-    results = json.loads(path.read_text())
+    results = load_results(out_dir)
     figures = draw_all(out_dir, results)
     return write_report(out_dir, results, figures)

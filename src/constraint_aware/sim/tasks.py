@@ -146,9 +146,9 @@ class TaskConfig:
 #: the paper's objects with the presets' numbers; lid and window are documented choices:
 #: - lid: a 1 kg chest or box lid, hinged horizontally, lifted by a bar at its front edge, with
 #:   a lid stay (torsion spring) carrying half its weight (counterbalance 0.5), as stays are
-#:   sized so that a lid neither slams nor springs open. Without the stay the weight at the
-#:   handle (up to m g / 2 = 4.9 N, falling as the lid rises) is a load the policy never saw in
-#:   training; benchmarks/placement.py measures that variant too.
+#:   sized so that a lid neither slams nor springs open. Without the stay its weight at the
+#:   handle (up to m g / 2 = 4.9 N, falling as the lid rises) loads the hand; the placement
+#:   benchmark (benchmarks/placement.py) measures that variant too.
 #: - window: a 4 kg vertical sliding sash with sash balances (counterbalance 1: the sash stays
 #:   where it is left, which is what balances are for); its 3 N channel friction remains.
 KIND_OBJECTS: dict[str, dict[str, Any]] = {
