@@ -17,9 +17,9 @@ import pytest
 from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, FaultRun, fault_suite, run_fault
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.policy import ConstraintAwarePolicy
-from constraint_aware.sim.hand import FORCE_SENSOR, HAND_BODY, TCP_SITE, TORQUE_SENSOR, WRIST_SITE
+from constraint_aware.sim import hand
 from constraint_aware.sim.tasks import TASKS, task_config
-from constraint_aware.sim.world import ManipulationSim
+from constraint_aware.sim.world import HOOK_PREFIX, ManipulationSim
 from constraint_aware.spatial import Wrench
 
 POLICY = ConstraintAwarePolicy.load()
@@ -32,6 +32,12 @@ EXPECTED = {
     "spike_200N": "force_limit",
     "stale_wrench": "stale_wrench",
 }
+
+# the hook hand's names as composed into the scene (sim/world.py: prefixed)
+FORCE_SENSOR, HAND_BODY, TCP_SITE, TORQUE_SENSOR, WRIST_SITE = (
+    HOOK_PREFIX + n
+    for n in (hand.FORCE_SENSOR, hand.HAND_BODY, hand.TCP_SITE, hand.TORQUE_SENSOR, hand.WRIST_SITE)
+)
 
 
 @functools.cache

@@ -14,7 +14,7 @@ from constraint_aware.control.simulate import RunSpec, executor_config, run
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.geometry import angle_deg
 from constraint_aware.sim.tasks import TASKS, task_config
-from constraint_aware.sim.world import ManipulationSim, build_mjcf
+from constraint_aware.sim.world import ManipulationSim, build_mjcf, build_spec
 from constraint_aware.spatial import Pose
 
 NAMED = [
@@ -29,10 +29,22 @@ NAMED = [
 
 @pytest.mark.parametrize("name", list(TASKS))
 def test_task_builds_and_every_element_is_named(name: str) -> None:
-    model = mujoco.MjModel.from_xml_string(build_mjcf(task_config(name)))
+    model = build_spec(task_config(name)).compile()
     for obj, count, first in NAMED:
         for i in range(first, getattr(model, count)):
             assert mujoco.mj_id2name(model, obj, i), f"unnamed {obj.name} {i} in {name}"
+    # the composed scene has the sizes the former MJCF template had (hand chain, object)
+    assert (model.nq, model.nv, model.nu, model.nbody, model.nsite, model.nsensor) == (
+        9,
+        9,
+        8,
+        11,
+        3,
+        2,
+    )
+    # and its written-out MJCF compiles to the same model
+    again = mujoco.MjModel.from_xml_string(build_mjcf(task_config(name)))
+    assert (again.nq, again.ngeom, again.nu) == (model.nq, model.ngeom, model.nu)
 
 
 @pytest.mark.parametrize("name", list(TASKS))

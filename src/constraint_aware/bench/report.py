@@ -192,6 +192,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
                 )
             add(f"| {name} [{entry['unit']}] | {levels} | " + " | ".join(cells) + " |")
         add("")
+    if "embodiment" in results:
+        lines += _embodiment_section(results["embodiment"])
     if "placement" in results:
         lines.extend(placement_report_lines(results["placement"]))
     if results.get("worst_cases"):
@@ -267,6 +269,77 @@ def policy_section_lines(sec: PolicySection) -> list[str]:
 
 def _fmt_level(v: float) -> str:
     return f"{v:g}"
+
+
+def _embodiment_cells(rows: list[dict[str, Any]], robots: list[str], ctrls: list[str]) -> list[str]:
+    """Rows per task and controller, a column per robot: successes / runs, median peak and
+    median mean |F| [N]."""
+    index = {(r["task"], r["controller"], r["robot"]): r for r in rows}
+    out = ["| task | controller | " + " | ".join(robots) + " |", "|---" * (len(robots) + 2) + "|"]
+    for task in dict.fromkeys(r["task"] for r in rows):
+        for c in ctrls:
+            cells = []
+            for robot in robots:
+                r = index.get((task, c, robot))
+                cells.append(
+                    "-"
+                    if r is None
+                    else f"{r['successes']}/{r['n']}, {_f(r['peak_force_median_N'])}, "
+                    f"{_f(r['mean_force_median_N'])}"
+                )
+            out.append(f"| {task} | {c} | " + " | ".join(cells) + " |")
+    return out
+
+
+def _embodiment_section(emb: dict[str, Any]) -> list[str]:
+    robots, ctrls = emb["robots"], emb["controllers"]
+    out = [
+        "## Embodiments: the same controllers on the hook hand and on a Kinova Jaco arm\n",
+        "Embodiment 1 is the hook hand on virtual Cartesian joints; embodiment 2 the Kinova Jaco "
+        "arm and 3-finger hand (dm-control's models) under an operational-space impedance "
+        "controller. The policy is the shipped one and the classical gains are those tuned on "
+        "embodiment 1's drawer; nothing is retuned. Cells: successes / runs, median peak |F|, "
+        "median mean |F| [N].\n",
+    ]
+    if emb["transfer"]:
+        out.append(f"Randomized suite, {emb['seeds']} seeds per task and controller:\n")
+        out += _embodiment_cells(emb["transfer"], robots, ctrls)
+        out.append("")
+    for level in dict.fromkeys(r["level"] for r in emb["paper"]):
+        band = "the executor's default dead band" if level is None else f"a {level:g} N dead band"
+        out.append(f"The paper's conditions (seed 0, paper offsets), {band}:\n")
+        out += _embodiment_cells([r for r in emb["paper"] if r["level"] == level], robots, ctrls)
+        out.append("")
+    if emb["variants"]:
+        periods = emb["simulated_period_s"]
+        out.append(
+            "Variants on the paper's conditions (all tasks pooled): successes / runs, the median "
+            "over tasks of the median peak |F| [N]. Simulated period per nominal period: "
+            + ", ".join(f"{k} s -> {_f(v, 3)} s" for k, v in periods.items())
+            + ".\n"
+        )
+        vctrls = list(dict.fromkeys(r["controller"] for r in emb["variants"]))
+        cols = [f"{rb} {c}" for rb in robots for c in vctrls]
+        out.append("| variant | level | " + " | ".join(cols) + " |")
+        out.append("|---" * (len(cols) + 2) + "|")
+        keys = dict.fromkeys((r["variant"], r["level"]) for r in emb["variants"])
+        for variant, level in keys:
+            cells = []
+            for rb in robots:
+                for c in vctrls:
+                    rows = [
+                        r
+                        for r in emb["variants"]
+                        if (r["variant"], r["level"], r["robot"], r["controller"])
+                        == (variant, level, rb, c)
+                    ]
+                    n = sum(r["n"] for r in rows)
+                    ok = sum(r["successes"] for r in rows)
+                    peaks = sorted(r["peak_force_median_N"] for r in rows)
+                    cells.append(f"{ok}/{n}, {_f(peaks[len(peaks) // 2])}" if rows else "-")
+            out.append(f"| {variant} | {_fmt_level(level)} | " + " | ".join(cells) + " |")
+        out.append("")
+    return out
 
 
 def _faults_section(add: Any, faults: dict[str, Any]) -> None:

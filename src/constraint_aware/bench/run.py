@@ -13,6 +13,7 @@ import numpy as np
 from constraint_aware.bench import experiments as ex
 from constraint_aware.bench import placement
 from constraint_aware.bench.analysis import policy_section
+from constraint_aware.bench.embodiment import for_bench as embodiment_for_bench
 from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite
 from constraint_aware.bench.figures import draw_all
 from constraint_aware.bench.report import write_report
@@ -172,6 +173,7 @@ def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
         "table": table,
         "peak_force_samples": ex.peak_force_samples(suite_runs),
     }
+    results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds).to_dict()
     all_runs = list(suite_runs)
     results["placement"] = placement.bench_section(quick)
     if not quick:

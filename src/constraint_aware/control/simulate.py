@@ -23,8 +23,14 @@ from constraint_aware.errors import (
 )
 from constraint_aware.geometry import FloatArray, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.sim.embodiment import (
+    DEFAULT_ROBOT,
+    Embodiment,
+    make_embodiment,
+    parse_robot,
+)
 from constraint_aware.sim.tasks import TASKS, TaskConfig, randomized, task_config
-from constraint_aware.sim.world import CONTROL_PERIOD, ManipulationSim
+from constraint_aware.sim.world import ManipulationSim
 from constraint_aware.spatial import Wrench
 
 
@@ -72,6 +78,8 @@ class RunSpec:
     overrides: tuple[tuple[str, object], ...] = ()  # task parameter overrides, and
     # ExecutorConfig fields as `executor__FIELD`
     controller_params: tuple[tuple[str, float], ...] = ()  # e.g. classical gains
+    robot: str = DEFAULT_ROBOT  # embodiment spec (sim.embodiment): "hook-hand", "jaco",
+    # optionally with variants: "jaco:stiffness=5000,period=0.05"
 
     def with_settings(self, settings: Settings) -> RunSpec:
         """This spec with `--set` settings (control.settings.parse_settings) added: task
@@ -109,6 +117,7 @@ class RunSpec:
         for name in self.executor_overrides:
             if name not in executor_fields:
                 raise UnknownNameError("executor setting", name, executor_fields)
+        parse_robot(self.robot)  # an unknown embodiment or variant names the valid ones
 
 
 def executor_config(task: TaskConfig, torque_policy: bool | None = None) -> ExecutorConfig:
@@ -137,11 +146,11 @@ def run(
     spec: RunSpec,
     policy: ConstraintAwarePolicy | None = None,
     controller: DirectionController | None = None,
-    on_step: Callable[[ManipulationSim], None] | None = None,
+    on_step: Callable[[Embodiment], None] | None = None,
     initial_direction: FloatArray | None = None,
     executor_overrides: dict[str, object] | None = None,
-    wrap: Callable[[ManipulationSim], Robot] | None = None,
-) -> tuple[RunRecord, ManipulationSim]:
+    wrap: Callable[[Embodiment], Robot] | None = None,
+) -> tuple[RunRecord, Embodiment]:
     """Build the task, grasp, and run the controller from d0 = u rotated by `offset_deg`.
 
     initial_direction (3,) replaces that d0 and executor_overrides replace ExecutorConfig
@@ -150,12 +159,13 @@ def run(
     simulator stays the task monitor. Exceptions carry the record as `exc.run_record`.
     """
     task = build_task(spec)
-    sim = NoisySensorSim(
-        task,
-        np.random.default_rng(spec.seed + 7919),
-        spec.sensor_noise,
-        np.asarray(spec.sensor_bias, dtype=float),
-    )
+    sensor_rng = np.random.default_rng(spec.seed + 7919)
+    bias = np.asarray(spec.sensor_bias, dtype=float)
+    sim: Embodiment
+    if spec.robot == DEFAULT_ROBOT:
+        sim = NoisySensorSim(task, sensor_rng, spec.sensor_noise, bias)
+    else:
+        sim = make_embodiment(spec.robot, task, sensor_rng, spec.sensor_noise, bias)
     sim.reset()
     cfg = executor_config(task, spec.torque_policy)
     changes = {**spec.executor_overrides, **(executor_overrides or {})}
@@ -172,7 +182,7 @@ def run(
         normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
     rate = None
     if cfg.constraint_type == "revolute" and cfg.rotation_radius:
-        rate = cfg.step_length / CONTROL_PERIOD / cfg.rotation_radius  # w_d = v_d / r
+        rate = cfg.step_length / sim.control_period / cfg.rotation_radius  # w_d = v_d / r
     ctrl = controller or make_controller(
         spec.controller, policy, rate, normal, dict(spec.controller_params)
     )
@@ -194,6 +204,7 @@ def run(
         "force_exertion_type": task.force_exertion_type,
         "force_limit_N": task.force_limit,
         "command_from": cfg.command_from,
+        "robot": spec.robot,
     }
     return executor.run(d0, label), sim
 
@@ -201,7 +212,7 @@ def run(
 class _Observed:
     """Forwards to the sim and calls `on_step` after each period (for video frames)."""
 
-    def __init__(self, sim: ManipulationSim, on_step: Callable[[ManipulationSim], None]) -> None:
+    def __init__(self, sim: Embodiment, on_step: Callable[[Embodiment], None]) -> None:
         self._sim = sim
         self._on_step = on_step
         on_step(sim)

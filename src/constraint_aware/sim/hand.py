@@ -20,8 +20,12 @@ on a surface (passive-force closure).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING
 
 from constraint_aware.errors import ConfigError, check_number, check_vector
+
+if TYPE_CHECKING:
+    from mujoco import MjSpec
 
 # MuJoCo names, kept in one place: resolve them to ids once (see sim/world.py).
 ARM_JOINTS = ("arm_x", "arm_y", "arm_z", "arm_yaw", "arm_pitch", "arm_roll")
@@ -171,3 +175,23 @@ def hand_defaults(cfg: HandConfig) -> str:
         f'<geom friction="{cfg.friction} {cfg.torsional_friction} 0.0001" condim="4" '
         f'solref="0.004 1" solimp="0.95 0.99 0.001" rgba="0.85 0.7 0.55 1"/>'
     )
+
+
+def hand_spec(cfg: HandConfig, mount_quat: tuple[float, float, float, float]) -> MjSpec:
+    """The arm chain, hand, actuators and wrist sensors as one spec, to attach to a scene.
+
+    mount_quat (w, x, y, z): the hand's orientation when all arm hinges are at zero.
+    """
+    body = hand_mjcf(cfg, mount_quat).replace(
+        f'name="{HAND_BODY}"', f'name="{HAND_BODY}" childclass="hand"'
+    )
+    xml = f"""<mujoco model="hook-hand">
+  <compiler angle="radian"/>
+  <default><default class="hand">{hand_defaults(cfg)}</default></default>
+  <worldbody>{body}</worldbody>
+  <actuator>{hand_actuators(cfg)}</actuator>
+  <sensor>{hand_sensors()}</sensor>
+</mujoco>"""
+    import mujoco  # here, not at import: sim.tasks (and so the package) must stay light
+
+    return mujoco.MjSpec.from_string(xml)

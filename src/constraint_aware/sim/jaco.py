@@ -1,0 +1,492 @@
+"""Embodiment 2: the Kinova Jaco arm and its three-finger hand (dm-control's models).
+
+Models. `dm_control/third_party/kinova/jaco_arm.xml` and `jaco_hand.xml` are loaded unmodified
+with `mujoco.MjSpec.from_file` (dm-control's own `mjcf.Physics` is not used: it fails on
+mujoco 4). The composition adds only sites, sensors and actuators: the hand is attached at the
+arm's `wristsite` (as dm-control's Jaco entity does), a force/torque sensor site at the flange
+(the hand body's origin), a tool-point site at the grasp centre, one torque motor per arm joint
+(limits from Kinova's datasheet, as dm-control states them: 30.5 N m large joints, 6.8 N m small
+joints) and one position servo per finger (force limit 1 N m, dm-control's finger actuator
+limit). The arm base is placed per task from the object's pose (`arm_base`).
+
+Control. An operational-space impedance controller on MuJoCo's Jacobian and mass matrix runs
+every 2 ms substep (`OscConfig`):
+
+    tau = J^T (K e - D (v - v_d)) + qfrc_bias + N^T tau_posture,  within the motors' limits
+
+e: (position, rotation-vector) error of the tool point from its setpoint, v = J qdot, v_d the
+setpoint's velocity while the Cartesian interpolator moves it (zero at rest); K =
+diag(k_t I3, k_r I3); D = 2 zeta sqrt(K) sqrt(diag Lambda), Lambda = (J M^-1 J^T)^-1 the
+task-space inertia from `mj_solveM` (each axis damped at `damping_ratio` of its own apparent
+mass); qfrc_bias compensates gravity (arm, hand) and Coriolis terms; N^T = I - J^T Lambda J M^-1
+is the dynamically consistent null-space projector carrying a joint-space posture spring (toward
+the grasp configuration) and a repulsion within `limit_margin` of a joint limit; the joints' dry
+friction (dm-control's model: 2 N m / 1 N m frictionloss) is fed forward in the direction of the
+commanded torque. The motors are torque sources (`motor` actuators); at a motor's limit the
+task torque is scaled down as a whole (clipping joint by joint turns the force). The
+wrist sensor reads the wrench between flange and hand, so the arm's remaining friction and its
+large reflected inertia (armature 4 / 2 kg m^2) show as tracking error and lag, not as force.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from constraint_aware.errors import CapError, InvalidInputError
+from constraint_aware.geometry import FloatArray
+from constraint_aware.sim.embodiment import Embodiment
+from constraint_aware.sim.objects import object_frame
+from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
+from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
+from constraint_aware.sim.tasks import TaskConfig
+from constraint_aware.spatial import Pose
+
+ARM_PREFIX = "jaco/"
+HAND_PREFIX = "hand/"  # inside the arm: the composed names are "jaco/hand/..."
+ARM_JOINTS = tuple(f"{ARM_PREFIX}joint_{i}" for i in range(1, 7))
+FINGER_JOINTS = tuple(f"{ARM_PREFIX}{HAND_PREFIX}finger_{i}" for i in range(1, 4))
+FLANGE_SITE = f"{ARM_PREFIX}{HAND_PREFIX}flange_ft"
+TCP_SITE = f"{ARM_PREFIX}{HAND_PREFIX}tcp"
+FORCE_SENSOR = "jaco_wrist_force"
+TORQUE_SENSOR = "jaco_wrist_torque"
+HAND_BODY = f"{ARM_PREFIX}{HAND_PREFIX}hand"
+LARGE_JOINT_TORQUE = 30.5  # [N m] Kinova datasheet peak torque (joints 1-3), via dm-control
+SMALL_JOINT_TORQUE = 6.8  # [N m] joints 4-6
+FINGER_TORQUE = 1.0  # [N m] dm-control's finger actuator force limit
+# The tool point on the hand's approach axis, 139 mm from the flange: the centre of a bar the
+# curled fingers hook (measured on the meshes' hulls: with the fingers at 1.25 rad a 27 mm bar
+# centred here rests on the fingertips, ~4 mm clear of the palm; 3 mm nearer the palm it would
+# have ~4 mm of slack before the fingertips catch it, and the hand would start out of contact).
+TCP_FROM_FLANGE = 0.139  # [m]
+_IK_CACHE: dict[tuple[float, ...], FloatArray] = {}  # grasp configurations, see _solve_ik
+
+
+def _consecutive(index: FloatArray, what: str) -> slice:
+    """A slice for consecutive indices (views instead of copies in the control loop)."""
+    first = int(index[0])
+    if not np.array_equal(index, np.arange(first, first + len(index))):
+        raise CapError(f"the Jaco's {what} are not consecutive: {index}")
+    return slice(first, first + len(index))
+
+
+def rotvec(rot: FloatArray) -> FloatArray:
+    """(3,) rotation vector [rad] of a (3, 3) rotation matrix (scipy's is ~50x slower here)."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot.tolist()
+    x, y, z = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)
+    s = math.sqrt(x * x + y * y + z * z)
+    angle = math.atan2(s, 0.5 * (r00 + r11 + r22 - 1.0))
+    if s < 1e-9:
+        return np.array([x, y, z])  # angle ~ 0: the rotation vector is v itself
+    if angle > math.pi - 1e-3:
+        return np.asarray(Rotation.from_matrix(rot).as_rotvec())  # near pi: v loses the axis
+    f = angle / s
+    return np.array([x * f, y * f, z * f])
+
+
+def jaco_model_dir() -> Path:
+    """The directory of dm-control's Kinova models (installed with the `arm` extra)."""
+    spec = importlib.util.find_spec("dm_control")
+    if spec is None or not spec.submodule_search_locations:
+        raise CapError(
+            "the Jaco embodiment needs dm-control's models: pip install 'constraint-aware[arm]'"
+        )
+    path = Path(next(iter(spec.submodule_search_locations))) / "third_party" / "kinova"
+    if not (path / "jaco_arm.xml").is_file():
+        raise CapError(f"dm-control's Kinova models not found under {path}")
+    return path
+
+
+@dataclass(frozen=True)
+class OscConfig:
+    """The arm's operational-space impedance controller. Units in brackets."""
+
+    translational_stiffness: float = 1000.0  # [N/m] k_t, each axis (the step force: k_t x 1 cm)
+    rotational_stiffness: float = 30.0  # [N m/rad] k_r: k_t x (0.17 m)^2, the same stiffness
+    # felt at the fingertips' distance from the wrist; well above the 1 N m joint friction
+    damping_ratio: float = 1.0  # [-] zeta of each task-space axis against its apparent mass
+    posture_stiffness: float = 5.0  # [N m/rad] null-space spring toward the grasp posture
+    posture_damping: float = 1.0  # [N m s/rad]
+    limit_margin: float = 0.15  # [rad] joint-limit repulsion starts this far from a limit
+    limit_stiffness: float = 50.0  # [N m/rad] of the repulsion
+    friction_compensation: float = 1.0  # [-] fraction of each joint's model frictionloss fed
+    # forward in the direction of the commanded torque (tanh over `friction_torque_scale`), as
+    # torque-controlled arms do: without it the joints' dry friction leaves a dead zone
+    # (measured in free space at 1000 N/m: 12 mm and 4 deg of a 20 mm / 6 deg step remain
+    # after 4 s; with it 1.8 mm and 1.5 deg)
+    friction_torque_scale: float = 0.2  # [N m]
+    finger_stiffness: float = 5.0  # [N m/rad] finger position servo
+    finger_damping: float = 0.05  # [N m s/rad]
+
+    def __post_init__(self) -> None:
+        if not 100.0 <= self.translational_stiffness <= 1e5:
+            raise InvalidInputError(
+                f"translational_stiffness {self.translational_stiffness} N/m; valid: 100-1e5"
+            )
+        if not 1.0 <= self.rotational_stiffness <= 1e4:
+            raise InvalidInputError(
+                f"rotational_stiffness {self.rotational_stiffness} N m/rad; valid: 1-1e4"
+            )
+        if not 0.1 <= self.damping_ratio <= 5.0:
+            raise InvalidInputError(f"damping_ratio {self.damping_ratio}; valid: 0.1-5")
+
+
+@dataclass(frozen=True)
+class JacoGrasp:
+    """How the three-finger hand holds one handle kind.
+
+    finger_start: [rad] finger angle when placed (contact-free); finger_target: [rad] servo
+    target (above the contact angle: the fingers squeeze with up to `FINGER_TORQUE`);
+    contact: where the handle meets the hand: "centre" (the TCP at the handle's centre),
+    "front" (the hand's foremost surface on the handle's top face: pressing) or "palm" (the
+    palm on the handle's top face, the fingers around its sides).
+    """
+
+    finger_start: float
+    finger_target: float
+    contact: str
+
+
+# One grasp per handle kind (the paper's force-exertion types, see README "Second embodiment").
+JACO_GRASPS: dict[str, JacoGrasp] = {
+    "bar": JacoGrasp(1.25, 1.25, "centre"),  # lazy closure: curled fingers hook the bar
+    "pole": JacoGrasp(1.0, 1.35, "centre"),  # active-force closure: a squeeze
+    "plate": JacoGrasp(1.35, 1.35, "front"),  # passive-force closure: a fist pressing down
+    "knob": JacoGrasp(0.6, 1.35, "palm"),  # palm on top, the fingers close on its sides
+}
+
+
+def _hand_spec(model_dir: Path) -> mujoco.MjSpec:
+    hand = mujoco.MjSpec.from_file(str(model_dir / "jaco_hand.xml"))
+    body = hand.body("hand")
+    body.add_site(name="flange_ft", size=[0.005, 0.0, 0.0])
+    # tool point: z along the approach (the hand body's -z), fingers spread along y
+    body.add_site(name="tcp", pos=[0.0, 0.0, -TCP_FROM_FLANGE], quat=[0.0, 1.0, 0.0, 0.0])
+    for j in ("finger_1", "finger_2", "finger_3"):
+        act = hand.add_actuator(name=j, target=j, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.set_to_position(kp=OscConfig.finger_stiffness, kv=OscConfig.finger_damping)
+        act.forcelimited = 1
+        act.forcerange = [-FINGER_TORQUE, FINGER_TORQUE]
+        act.ctrlrange = [0.0, 1.5]
+    return hand
+
+
+def _arm_spec(model_dir: Path) -> mujoco.MjSpec:
+    arm = mujoco.MjSpec.from_file(str(model_dir / "jaco_arm.xml"))
+    arm.site("wristsite").attach_body(_hand_spec(model_dir).body("hand"), HAND_PREFIX, "")
+    for i in range(1, 7):
+        limit = LARGE_JOINT_TORQUE if i <= 3 else SMALL_JOINT_TORQUE
+        act = arm.add_actuator(
+            name=f"joint_{i}", target=f"joint_{i}", trntype=mujoco.mjtTrn.mjTRN_JOINT
+        )
+        act.set_to_motor()
+        act.ctrllimited = 1
+        act.ctrlrange = [-limit, limit]
+    return arm
+
+
+#: Where the base stands relative to the handle's mid-motion position, per (joint type, handle):
+#: (horizontal distance [m], azimuth from the pull direction toward `side` [deg], height [m]).
+#: The azimuth is the one (of 0, +-15, +-45, +-90 deg) whose inverse kinematics keeps the
+#: largest joint-limit margin along the motion (0-120 % of success; a controller-independent
+#: workspace criterion): drawer 0.59 rad, plate 1.08, pole 1.00, door 1.30, knob 1.06.
+BASE_PLACEMENT: dict[tuple[str, str], tuple[float, float, float]] = {
+    ("prismatic", "bar"): (0.55, 45.0, -0.3),
+    ("prismatic", "pole"): (0.55, 45.0, -0.3),
+    ("prismatic", "plate"): (0.45, -90.0, -0.1),
+    ("revolute", "bar"): (0.55, 90.0, -0.3),
+    ("revolute", "knob"): (0.45, -90.0, -0.1),
+}
+
+
+def arm_base(task: TaskConfig, placement: tuple[float, float, float] | None = None) -> FloatArray:
+    """(3,) [m] where the arm's base stands, from the object's pose: `placement` (default
+    `BASE_PLACEMENT` of the object kind) from the handle's position half-way to success, in
+    that position's (pull direction, side, up) frame."""
+    obj = task.object
+    frame = object_frame(obj)
+    out, side, up = frame[:, 0], frame[:, 1], frame[:, 2]
+    handle = obj.handle_position
+    half = 0.5 * min(task.success_progress, obj.joint_range[1])  # the joint cannot go further
+    if obj.joint_type == "prismatic":
+        mid = handle + half * np.asarray(obj.axis, float)
+        turn = Rotation.identity()
+    else:
+        turn = Rotation.from_rotvec(half * np.asarray(obj.axis, float))
+        pivot = np.asarray(obj.position, float)
+        mid = pivot + turn.apply(handle - pivot)
+    out, side = turn.apply(out), turn.apply(side)
+    kind = (obj.joint_type, obj.handle)
+    if placement is None and kind not in BASE_PLACEMENT:
+        raise InvalidInputError(f"no Jaco base placement for a {kind[0]} {kind[1]}")
+    reach, azimuth, height = placement or BASE_PLACEMENT[kind]
+    a = np.radians(azimuth)
+    return mid + reach * (np.cos(a) * out + np.sin(a) * side) + height * up
+
+
+class JacoSim(Embodiment):
+    """A task with the Jaco arm and hand, driven by the operational-space controller.
+
+    Same API as `ManipulationSim`: `reset()` grasps; the Robot and TaskMonitor methods follow.
+    """
+
+    # the fingers' own damping (0.75 N m s/rad) against their 1 N m limit lets them close at
+    # ~1.3 rad/s at most: each settling phase of the grasp lasts 1 s
+    settle_time = 1.0
+
+    def __init__(
+        self,
+        task: TaskConfig,
+        osc: OscConfig | None = None,
+        control_period: float = CONTROL_PERIOD,
+        base: FloatArray | None = None,
+    ) -> None:
+        if task.object.handle not in JACO_GRASPS:
+            raise InvalidInputError(
+                f"handle {task.object.handle!r}; the Jaco hand grasps: {sorted(JACO_GRASPS)}"
+            )
+        self.task = task
+        self.osc = osc or OscConfig()
+        self.control_period_s = control_period
+        self.grasp_kind = JACO_GRASPS[task.object.handle]
+        self.base = arm_base(task) if base is None else np.asarray(base, dtype=float)
+        self.model = build_model(task, self.base)
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self._arm_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in ARM_JOINTS])
+        self._arm_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in ARM_JOINTS])
+        self._finger_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in FINGER_JOINTS])
+        self._arm_act = np.array([m.actuator(ARM_PREFIX + f"joint_{i}").id for i in range(1, 7)])
+        self._finger_act = np.array(
+            [m.actuator(f"{ARM_PREFIX}{HAND_PREFIX}finger_{i}").id for i in range(1, 4)]
+        )
+        self._torque_limit = m.actuator_ctrlrange[self._arm_act, 1].copy()
+        jids = [m.joint(j).id for j in ARM_JOINTS]
+        self._limited = np.array([bool(m.jnt_limited[j]) for j in jids])
+        self._range = np.array([m.jnt_range[j] for j in jids])
+        self._bind_sensor(FLANGE_SITE, TCP_SITE, FORCE_SENSOR, TORQUE_SENSOR)
+        hand_body = m.body(HAND_BODY).id
+        hand_geoms = {
+            g for g in range(m.ngeom) if self._is_in_subtree(int(m.geom_bodyid[g]), hand_body)
+        }
+        self._bind_monitor(hand_geoms, OBJECT_PREFIX)
+        self._setpoint = Pose(np.zeros(3), Rotation.identity())
+        self._sp_pos = np.zeros(3)
+        self._sp_mat = np.eye(3)
+        self._sp_vel = np.zeros(6)  # [m/s, rad/s] the setpoint's velocity (interpolator)
+        self._posture = np.zeros(6)
+        self._jacp = np.zeros((3, m.nv))
+        self._jacr = np.zeros((3, m.nv))
+        self._jac = np.zeros((6, m.nv))
+        self._minv_jt = np.zeros((6, m.nv))
+        osc = self.osc
+        self._k = np.repeat([osc.translational_stiffness, osc.rotational_stiffness], 3)
+        self._damp_gain = 2.0 * osc.damping_ratio * np.sqrt(self._k)
+        # joint-limit repulsion band (unlimited joints: an empty band at +-inf)
+        self._lo = np.where(self._limited, self._range[:, 0] + osc.limit_margin, -np.inf)
+        self._hi = np.where(self._limited, self._range[:, 1] - osc.limit_margin, np.inf)
+        self._limit_gain = osc.limit_stiffness
+        self._act_slice = _consecutive(self._arm_act, "arm motors")
+        self._dof_slice = _consecutive(self._arm_dof, "arm dofs")
+        self._qpos_slice = _consecutive(self._arm_qpos, "arm joint positions")
+        self._err = np.zeros(6)
+        fric = self.osc.friction_compensation * m.dof_frictionloss[self._dof_slice]
+        self._friction = fric if np.any(fric) else None
+        self._eps = 1e-6 * np.eye(6)  # keeps Lambda finite at a singular configuration
+
+    def _is_in_subtree(self, body: int, root: int) -> bool:
+        while body > 0:
+            if body == root:
+                return True
+            body = int(self.model.body_parentid[body])
+        return False
+
+    # --- the operational-space impedance controller ----------------------------------------
+    def _control(self) -> None:
+        """Motor torques for this substep from the OSC law (module docstring)."""
+        m, d = self.model, self.data
+        jac, minv_jt, dofs = self._jac, self._minv_jt, self._dof_slice
+        mujoco.mj_jacSite(m, d, jac[:3], jac[3:], self._tcp_site)
+        mujoco.mj_solveM(m, d, minv_jt, jac)  # rows: (M^-1 J^T)^T
+        j_arm, minv_arm = jac[:, dofs], minv_jt[:, dofs]
+        lam = np.linalg.inv(j_arm @ minv_arm.T + self._eps)
+        err = self._err
+        err[:3] = self._sp_pos - d.site_xpos[self._tcp_site]
+        err[3:] = rotvec(self._sp_mat @ d.site_xmat[self._tcp_site].reshape(3, 3).T)
+        qvel = d.qvel[dofs]
+        # damping on the velocity error: a moving setpoint is tracked without a damping lag
+        vel_err = j_arm @ qvel - self._sp_vel
+        wrench = self._k * err - self._damp_gain * np.sqrt(lam.diagonal()) * vel_err
+        # null space: posture spring and joint-limit repulsion, projected so that they do not
+        # disturb the tool point (dynamically consistent: N^T = I - J^T Lambda J M^-1)
+        q = d.qpos[self._qpos_slice]
+        tau0 = self.osc.posture_stiffness * self._wrapped(self._posture - q)
+        tau0 -= self.osc.posture_damping * qvel
+        tau0 -= self._limit_gain * (np.minimum(q - self._lo, 0.0) + np.maximum(q - self._hi, 0.0))
+        tau = j_arm.T @ (wrench - lam @ (minv_arm @ tau0)) + tau0
+        if self._friction is not None:
+            tau += self._friction * np.tanh(tau / self.osc.friction_torque_scale)
+        bias = d.qfrc_bias[dofs]
+        # at a motor's limit, scale the whole task torque down rather than clip joints one by
+        # one: clipping would turn the Cartesian force away from the commanded direction
+        room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
+        excess = float(np.max(np.abs(tau) / room))
+        if excess > 1.0:
+            tau /= excess
+        np.clip(tau + bias, -self._torque_limit, self._torque_limit, out=d.ctrl[self._act_slice])
+
+    @staticmethod
+    def _wrapped(a: FloatArray) -> FloatArray:
+        return (a + np.pi) % (2 * np.pi) - np.pi
+
+    def _step(self, n: int) -> None:
+        for _ in range(max(n, 0)):
+            self._control()
+            mujoco.mj_step(self.model, self.data)
+
+    # --- SimulatedRobot -------------------------------------------------------------------
+    @property
+    def translational_stiffness(self) -> float:
+        """[N/m] the OSC's Cartesian stiffness (each axis)."""
+        return self.osc.translational_stiffness
+
+    def _set_setpoint_velocity(self, twist: FloatArray) -> None:
+        self._sp_vel = np.asarray(twist, dtype=float)
+
+    def _apply_setpoint(self, pose: Pose) -> None:
+        self._setpoint = pose
+        self._sp_pos = np.asarray(pose.position, dtype=float)
+        self._sp_mat = pose.orientation.as_matrix()
+
+    def _rest_at_measured(self) -> None:
+        self._apply_setpoint(self.read_pose())
+
+    def commanded_pose(self) -> Pose:
+        return self._setpoint
+
+    def _hand_extent(self, finger_angle: float, palm_only: bool = False) -> float:
+        """[m] how far the hand (or its palm alone) reaches along its approach axis beyond the
+        tool point with the fingers at `finger_angle` (mesh vertices; the data is left in an
+        arbitrary state)."""
+        m, d = self.model, self.data
+        d.qpos[self._finger_qpos] = finger_angle
+        mujoco.mj_kinematics(m, d)
+        tcp = self._tcp_site
+        rot, origin = d.site_xmat[tcp].reshape(3, 3), d.site_xpos[tcp]
+        reach = -np.inf
+        for g in self._hand_geoms:
+            if m.geom_type[g] != mujoco.mjtGeom.mjGEOM_MESH or m.geom_contype[g] == 0:
+                continue
+            if palm_only and m.geom_bodyid[g] != m.body(HAND_BODY).id:
+                continue
+            mesh = int(m.geom_dataid[g])
+            start, count = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
+            verts = m.mesh_vert[start : start + count]
+            world = d.geom_xpos[g] + verts @ d.geom_xmat[g].reshape(3, 3).T
+            reach = max(reach, float(np.max((world - origin) @ rot[:, 2])))
+        return reach
+
+    def grasp_pose(self) -> Pose:
+        """The TCP pose at which the hand holds the handle (object at joint position 0)."""
+        mount = Rotation.from_matrix(self.task.hand_mount())
+        pos = self.task.object.handle_position.copy()
+        if self.grasp_kind.contact != "centre":
+            # the hand's foremost surface (or the palm's) on the handle's top face
+            palm = self.grasp_kind.contact == "palm"
+            reach = self._hand_extent(self.grasp_kind.finger_start, palm_only=palm)
+            pos = pos - mount.apply([0.0, 0.0, reach])
+        return Pose(pos, mount)
+
+    def _solve_ik(self, pose: Pose) -> FloatArray:
+        """(6,) arm joint angles putting the TCP at `pose` (damped least squares from several
+        seeds; the solution farthest from the joint limits among the converged ones). Solutions
+        are cached per base and pose: randomized tasks share their geometry."""
+        key = (*np.round(self.base, 9), *np.round(pose.position, 9), *pose.orientation.as_quat())
+        cached = _IK_CACHE.get(key)
+        if cached is not None:
+            return cached.copy()
+        q = self._search_ik(pose)
+        _IK_CACHE[key] = q.copy()
+        return q
+
+    def _search_ik(self, pose: Pose) -> FloatArray:
+        m, d = self.model, self.data
+        best, best_score = None, -np.inf
+        yaw0 = np.arctan2(*(pose.position - self.base)[1::-1])
+        for dyaw in (0.0, 0.8, -0.8, 1.6, -1.6, np.pi):
+            for q2, q3 in ((2.6, 1.2), (3.6, 5.0), (2.9, 1.7)):
+                q = np.array([-yaw0 + dyaw, q2, q3, 4.0, 0.0, 0.0])
+                q = self._ik_from(q, pose)
+                d.qpos[self._arm_qpos] = q
+                mujoco.mj_kinematics(m, d)
+                pos_err = np.linalg.norm(d.site_xpos[self._tcp_site] - pose.position)
+                rot = d.site_xmat[self._tcp_site].reshape(3, 3)
+                rot_err = np.linalg.norm(rotvec(pose.orientation.as_matrix() @ rot.T))
+                if pos_err > 1e-4 or rot_err > 1e-3:
+                    continue
+                margin = np.where(
+                    self._limited,
+                    np.minimum(q - self._range[:, 0], self._range[:, 1] - q),
+                    np.pi,
+                )
+                score = float(np.min(margin))
+                if score > best_score:
+                    best, best_score = q, score
+        if best is None:
+            raise CapError(f"the Jaco cannot reach the grasp of {self.task.name} from {self.base}")
+        return best
+
+    def _ik_from(self, q: FloatArray, pose: Pose) -> FloatArray:
+        m, d = self.model, self.data
+        for _ in range(200):
+            d.qpos[self._arm_qpos] = q
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            pos = d.site_xpos[self._tcp_site]
+            rot = Rotation.from_matrix(d.site_xmat[self._tcp_site].reshape(3, 3))
+            err = np.concatenate([pose.position - pos, (pose.orientation * rot.inv()).as_rotvec()])
+            if np.linalg.norm(err) < 1e-7:
+                break
+            mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp_site)
+            jac = np.vstack([self._jacp, self._jacr])[:, self._arm_dof]
+            step = jac.T @ np.linalg.solve(jac @ jac.T + 1e-4 * np.eye(6), err)
+            q = q + np.clip(step, -0.3, 0.3)
+            q = np.where(self._limited, np.clip(q, *self._range.T), q)
+        return q
+
+    def _place(self, pose: Pose) -> None:
+        d = self.data
+        q = self._solve_ik(pose)
+        mujoco.mj_resetData(self.model, d)
+        d.qpos[self._arm_qpos] = q
+        self._posture = q.copy()
+        d.qpos[self._finger_qpos] = self.grasp_kind.finger_start
+        d.ctrl[self._finger_act] = self.grasp_kind.finger_target
+        self._apply_setpoint(pose)
+
+
+def build_model(task: TaskConfig, base: FloatArray) -> mujoco.MjModel:
+    """The task's scene with the Jaco arm standing at `base` (3,) [m], hand on its flange."""
+    spec = scene_spec(task)
+    model_dir = jaco_model_dir()
+    frame = spec.worldbody.add_frame(pos=list(map(float, base)))
+    spec.attach(_arm_spec(model_dir), prefix=ARM_PREFIX, frame=frame)
+    spec.add_sensor(
+        name=FORCE_SENSOR,
+        type=mujoco.mjtSensor.mjSENS_FORCE,
+        objtype=mujoco.mjtObj.mjOBJ_SITE,
+        objname=FLANGE_SITE,
+    )
+    spec.add_sensor(
+        name=TORQUE_SENSOR,
+        type=mujoco.mjtSensor.mjSENS_TORQUE,
+        objtype=mujoco.mjtObj.mjOBJ_SITE,
+        objname=FLANGE_SITE,
+    )
+    return spec.compile()

@@ -1,0 +1,182 @@
+"""The executor's `Robot` protocol on a simulated embodiment, shared by every embodiment.
+
+`SimulatedRobot` owns what does not depend on the arm: the control period, the wrist sensor's
+filter and sign convention, the Cartesian interpolation of each period's setpoint, and the
+`read_*`/`command_*`/`advance` methods. An embodiment says only how a TCP pose setpoint reaches
+its controller (`_apply_setpoint`), how the physics advances (`_step`: plain `mj_step` for
+servo-driven joints, a control law per substep for a torque-controlled arm), and how the grasp
+is placed (`_place`, see sim/grasp.py).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from constraint_aware.geometry import FloatArray
+from constraint_aware.sim.tasks import TaskConfig
+from constraint_aware.spatial import Pose, Wrench
+
+TIMESTEP = 0.002  # [s]
+CONTROL_PERIOD = 0.1  # [s] paper 5.1: the direction is updated every 100 ms
+RAMP_CHUNKS = 10  # the commanded pose is interpolated over the period in this many pieces
+SETTLE_TIME = 0.4  # [s] after placing the hand, and again after re-targeting the wrist
+FILTER_STEPS = 10  # the wrench is averaged over the last 10 substeps (20 ms) of a period
+
+
+class SimulatedRobot(ABC):
+    """A MuJoCo hand on a compliant arm with a wrist F/T sensor, as the executor sees it.
+
+    Subclasses set `model`, `data`, `task` and call `_bind_sensor(...)` in their constructor.
+    """
+
+    model: mujoco.MjModel
+    data: mujoco.MjData
+    task: TaskConfig
+    control_period_s: float = CONTROL_PERIOD
+    settle_time: float = SETTLE_TIME  # [s] of each settling phase of the grasp (sim/grasp.py)
+
+    def _bind_sensor(self, wrist_site: str, tcp_site: str, force: str, torque: str) -> None:
+        """Resolve the sensor's names to ids once."""
+        m = self.model
+        self._wrist_site = m.site(wrist_site).id
+        self._tcp_site = m.site(tcp_site).id
+        fs, ts = m.sensor(force), m.sensor(torque)
+        self._force_adr = slice(int(fs.adr[0]), int(fs.adr[0]) + 3)
+        self._torque_adr = slice(int(ts.adr[0]), int(ts.adr[0]) + 3)
+        self._filtered = np.zeros(6)
+        self._touched = False
+        self._next_pose: Pose | None = None
+
+    # --- what an embodiment provides -------------------------------------------------------
+    @abstractmethod
+    def grasp_pose(self) -> Pose:
+        """The TCP pose at which the hand holds the handle (object at joint position 0)."""
+
+    @abstractmethod
+    def _place(self, pose: Pose) -> None:
+        """Put the arm's state at the grasp pose and the fingers at their grasp targets."""
+
+    @abstractmethod
+    def _apply_setpoint(self, pose: Pose) -> None:
+        """Make `pose` the compliant controller's current TCP setpoint."""
+
+    @abstractmethod
+    def _rest_at_measured(self) -> None:
+        """Set the setpoint to where the hand is (no preload from the grasp)."""
+
+    @abstractmethod
+    def commanded_pose(self) -> Pose:
+        """The compliant controller's current setpoint."""
+
+    @abstractmethod
+    def in_contact(self) -> bool:
+        """Whether the hand touches the object now."""
+
+    @property
+    @abstractmethod
+    def translational_stiffness(self) -> float:
+        """[N/m] the arm's Cartesian impedance stiffness along the motion."""
+
+    def _step(self, n: int) -> None:
+        """Advance the physics `n` substeps (override to run a control law per substep)."""
+        mujoco.mj_step(self.model, self.data, nstep=n)
+
+    def _set_setpoint_velocity(self, twist: FloatArray) -> None:
+        """(6,) [m/s, rad/s] the interpolator's setpoint velocity (world frame) while it moves;
+        zeros once it rests. Override when the controller damps relative to it."""
+        del twist  # servo-driven joints (the hook hand's) damp against absolute velocity
+
+    # --- Robot protocol ----------------------------------------------------------------------
+    @property
+    def control_period(self) -> float:
+        return self.control_period_s
+
+    def _sample_wrench(self) -> FloatArray:
+        """(6,) instantaneous (F_s, tau_s about the TCP), world frame."""
+        d = self.data
+        rot = d.site_xmat[self._wrist_site].reshape(3, 3)
+        # MuJoCo reports the parent's (arm's) action on the hand; F_s is its opposite
+        force = -rot @ d.sensordata[self._force_adr]
+        torque_wrist = -rot @ d.sensordata[self._torque_adr]
+        lever = d.site_xpos[self._wrist_site] - d.site_xpos[self._tcp_site]
+        return np.concatenate([force, torque_wrist + np.cross(lever, force)])
+
+    def _settle_filter(self) -> None:
+        """Step `FILTER_STEPS` substeps, averaging the wrench as the sensor's filter does."""
+        acc = np.zeros(6)
+        touched = False
+        for _ in range(FILTER_STEPS):
+            self._step(1)
+            acc += self._sample_wrench()
+            touched = touched or self.in_contact()
+        self._filtered = acc / FILTER_STEPS
+        self._touched = touched
+
+    def set_sensor_noise(
+        self, rng: np.random.Generator, noise: float, bias: FloatArray | None = None
+    ) -> None:
+        """Gaussian noise `noise` [N] std per force axis (torque: noise / 10 [N m]) and a
+        constant force bias (3,) [N] on every reading from now on."""
+        self._noise_rng = rng
+        self._noise = float(noise)
+        self._bias = np.zeros(3) if bias is None else np.asarray(bias, dtype=float)
+
+    def read_wrench(self) -> Wrench:
+        """The wrist wrench averaged over the last 20 ms (a sensor's low-pass filter)."""
+        w = self._filtered
+        force, torque = w[:3].copy(), w[3:].copy()
+        rng = getattr(self, "_noise_rng", None)
+        if rng is None or (self._noise == 0.0 and not np.any(self._bias)):
+            return Wrench(force=force, torque=torque)
+        return Wrench(
+            force=force + self._bias + self._noise * rng.normal(size=3),
+            torque=torque + 0.1 * self._noise * rng.normal(size=3),
+        )
+
+    def read_pose(self) -> Pose:
+        d = self.data
+        rot = Rotation.from_matrix(d.site_xmat[self._tcp_site].reshape(3, 3))
+        return Pose(d.site_xpos[self._tcp_site].copy(), rot)
+
+    def command_pose(self, pose: Pose) -> None:
+        self._next_pose = pose
+
+    def hold(self) -> None:
+        """Stop: hold the current measured pose (the executor calls this on every stop)."""
+        self._next_pose = None
+        self._rest_at_measured()
+
+    def grasp_contact(self) -> bool | None:
+        """The hand's contact sensing: any hand-object contact during the last 20 ms (a bar
+        held loosely chatters, so one instant is not enough)."""
+        return self._touched
+
+    def advance(self) -> None:
+        """One control period: the TCP pose setpoint moves along a straight line (orientation
+        by slerp) from the last setpoint to the commanded one, as an arm's Cartesian
+        interpolator does; the wrench is filtered over the period's last 20 ms."""
+        start = self.commanded_pose()
+        goal = self._next_pose if self._next_pose is not None else start
+        slerp = Slerp([0.0, 1.0], Rotation.concatenate([start.orientation, goal.orientation]))
+        fractions = [i / RAMP_CHUNKS for i in range(1, RAMP_CHUNKS + 1)]
+        orientations = slerp(fractions)  # one call: slerp is slow per call, not per rotation
+        n = round(self.control_period_s / TIMESTEP / RAMP_CHUNKS)
+        duration = RAMP_CHUNKS * n * TIMESTEP  # [s] over which the setpoint travels
+        turn = (goal.orientation * start.orientation.inv()).as_rotvec()
+        self._set_setpoint_velocity(
+            np.concatenate([goal.position - start.position, turn]) / duration
+        )
+        for i, f in enumerate(fractions, start=1):
+            self._apply_setpoint(
+                Pose(start.position + f * (goal.position - start.position), orientations[i - 1])
+            )
+            if i < RAMP_CHUNKS:
+                self._step(n)
+        self._set_setpoint_velocity(np.zeros(6))
+        self._step(n - FILTER_STEPS)
+        self._settle_filter()
+        self._next_pose = None

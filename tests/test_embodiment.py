@@ -1,0 +1,255 @@
+"""The second embodiment (Kinova Jaco arm + 3-finger hand) and the embodiment registry."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+import constraint_aware.control.executor as executor_module
+from constraint_aware.control.controllers import ControlInput, FixedDirection
+from constraint_aware.control.executor import Executor
+from constraint_aware.control.simulate import RunSpec, executor_config, run
+from constraint_aware.errors import InvalidInputError, UnknownNameError
+from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.sim.embodiment import EMBODIMENTS, make_embodiment, parse_robot
+from constraint_aware.sim.jaco import (
+    ARM_JOINTS,
+    FINGER_JOINTS,
+    FLANGE_SITE,
+    FORCE_SENSOR,
+    TCP_SITE,
+    TORQUE_SENSOR,
+    JacoSim,
+    OscConfig,
+    jaco_model_dir,
+    rotvec,
+)
+from constraint_aware.sim.tasks import TASKS, task_config
+from constraint_aware.spatial import Pose, Wrench
+
+NAMED = [
+    (mujoco.mjtObj.mjOBJ_BODY, "nbody", 1),
+    (mujoco.mjtObj.mjOBJ_JOINT, "njnt", 0),
+    (mujoco.mjtObj.mjOBJ_GEOM, "ngeom", 0),
+    (mujoco.mjtObj.mjOBJ_SITE, "nsite", 0),
+    (mujoco.mjtObj.mjOBJ_ACTUATOR, "nu", 0),
+    (mujoco.mjtObj.mjOBJ_SENSOR, "nsensor", 0),
+]
+
+
+@pytest.fixture(scope="module")
+def drawer() -> JacoSim:
+    sim = JacoSim(task_config("drawer-opening"))
+    sim.reset()
+    return sim
+
+
+def test_models_come_unmodified_from_dm_control(drawer: JacoSim) -> None:
+    assert (jaco_model_dir() / "jaco_arm.xml").is_file()
+    m = drawer.model
+    for name in (FLANGE_SITE, TCP_SITE):
+        assert m.site(name).id >= 0
+    for name in (FORCE_SENSOR, TORQUE_SENSOR):
+        assert m.sensor(name).dim[0] == 3
+    for joint in (*ARM_JOINTS, *FINGER_JOINTS):
+        assert m.joint(joint).id >= 0
+    for obj, count, first in NAMED:
+        for i in range(first, getattr(m, count)):
+            assert mujoco.mj_id2name(m, obj, i), f"unnamed {obj.name} {i}"
+    # the arm's own parameters stay as dm-control ships them
+    dof = m.jnt_dofadr[m.joint(ARM_JOINTS[0]).id]
+    assert m.dof_armature[dof] == 4.0 and m.dof_frictionloss[dof] == 2.0
+
+
+@pytest.mark.parametrize("name", list(TASKS))
+def test_grasp_settles_finite_in_contact_without_slip(name: str) -> None:
+    sim = JacoSim(task_config(name))
+    sim.reset()
+    w = sim.read_wrench()
+    assert np.all(np.isfinite(w.force)) and np.all(np.isfinite(w.torque))
+    assert np.all(np.isfinite(sim.data.qpos))
+    assert sim.slip() == (0.0, 0.0)
+    assert abs(sim.progress()) < 2e-3
+    assert sim.grasp_contact()  # every Jaco grasp touches its handle at rest
+
+
+def test_robot_protocol_conformance(drawer: JacoSim) -> None:
+    assert drawer.control_period == pytest.approx(0.1)
+    assert drawer.translational_stiffness == OscConfig().translational_stiffness
+    assert isinstance(drawer.read_wrench(), Wrench)
+    pose = drawer.read_pose()
+    assert isinstance(pose, Pose) and pose.position.shape == (3,)
+    assert isinstance(drawer.commanded_pose(), Pose)
+    assert isinstance(drawer.grasp_contact(), bool)
+    drawer.command_pose(drawer.commanded_pose())
+    drawer.advance()
+    drawer.hold()
+    np.testing.assert_allclose(drawer.commanded_pose().position, drawer.read_pose().position)
+    for member in ("admissible_direction", "progress", "succeeded", "grasp_failure", "slip"):
+        assert callable(getattr(drawer, member))
+
+
+def test_sensor_sign_matches_the_hook_hand() -> None:
+    """At rest the hand's weight pulls the flange down; pressing 5 mm deeper into the plate,
+    the plate pushes the hand up by about stiffness x 5 mm (F_s = action on the hand)."""
+    task = task_config("plate-sliding")
+    sim = JacoSim(task)
+    sim.reset()
+    before = sim.read_wrench().force
+    target = sim.commanded_pose()
+    sim.command_pose(target.moved(np.array([0.0, 0.0, -0.005])))
+    for _ in range(10):
+        sim.advance()
+    delta = sim.read_wrench().force - before
+    expected = sim.translational_stiffness * 0.005
+    assert delta[2] > 0
+    assert delta[2] == pytest.approx(expected, rel=0.3)
+
+
+def test_same_seed_same_rollout() -> None:
+    spec = RunSpec(
+        "door-opening",
+        offset_deg=10.0,
+        seed=3,
+        randomize=True,
+        robot="jaco",
+        overrides=(("max_steps", 10),),
+    )
+    a, _ = run(spec)
+    b, _ = run(spec)
+    assert a.to_dict() == b.to_dict()
+    for step in a.steps:
+        assert np.all(np.isfinite(step.force)) and np.all(np.isfinite(step.hand_position))
+
+
+class _TrueDirection(FixedDirection):
+    """Moves along the simulator's true admissible direction: a scripted pull."""
+
+    name = "truth"
+
+    def __init__(self, sim: JacoSim) -> None:
+        self.sim = sim
+
+    def next_direction(self, inp: ControlInput) -> np.ndarray:
+        return self.sim.admissible_direction()
+
+
+@pytest.mark.parametrize("name", ["drawer-opening", "plate-sliding", "pole-pulling"])
+def test_grasp_holds_under_a_scripted_pull(name: str) -> None:
+    task = task_config(name)
+    sim = JacoSim(task)
+    sim.reset()
+    # the subject is the grasp: the executor's start-of-run self-check assumes a quasi-static
+    # arm (F = k x deflection), which the lagging Jaco is not (README, "Second embodiment")
+    cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
+    record = Executor(sim, _TrueDirection(sim), cfg, monitor=sim).run(sim.admissible_direction())
+    assert record.outcome == "success", record.reason
+    assert record.slip_m < 0.015
+
+
+def _free_space_sim(osc: OscConfig) -> tuple[JacoSim, Pose]:
+    """The arm 8 cm back from the pole, fingers open: nothing touches the hand."""
+    sim = JacoSim(task_config("pole-pulling"), osc)
+    grasp = sim.grasp_pose()
+    free = grasp.moved(grasp.orientation.apply([0.0, 0.0, -0.08]))
+    mujoco.mj_resetData(sim.model, sim.data)
+    sim._place(free)
+    sim.data.qpos[sim._finger_qpos] = 0.3
+    sim.data.ctrl[sim._finger_act] = 0.3
+    mujoco.mj_forward(sim.model, sim.data)
+    return sim, free
+
+
+def test_osc_holds_against_gravity_and_tracks_a_step() -> None:
+    sim, free = _free_space_sim(OscConfig())
+    sim._step(500)  # 1 s holding still: gravity compensated, no sag
+    assert np.linalg.norm(sim.read_pose().position - free.position) < 5e-4
+    target = free.moved(np.array([0.02, 0.0, 0.0]), Rotation.from_rotvec([0.0, 0.0, 0.1]))
+    sim._apply_setpoint(target)
+    sim._step(1000)  # 2 s
+    pose = sim.read_pose()
+    assert not sim.in_contact()
+    assert np.linalg.norm(target.position - pose.position) < 3e-3  # of a 20 mm step
+    assert np.degrees((target.orientation * pose.orientation.inv()).magnitude()) < 2.5  # of 5.7
+
+
+@pytest.mark.parametrize(
+    "policy_name",
+    [
+        "paper",
+        pytest.param(
+            "default",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="the new default policy loses contact with the arm's lazy hook after "
+                "12 steps (10.6 cm) here; remove this mark when it succeeds",
+            ),
+        ),
+    ],
+)
+def test_drawer_with_the_policy_on_the_arm(
+    monkeypatch: pytest.MonkeyPatch, policy_name: str
+) -> None:
+    spec = RunSpec("drawer-opening", robot="jaco", controller="policy", offset_deg=30)
+    # without the executor's two guards that assume a quasi-static arm (F = k x deflection):
+    # the start-of-run self-check and the arm-deflection stop (see the xfail test below)
+    monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
+    policy = ConstraintAwarePolicy.load(policy_name)
+    record, sim = run(spec, policy=policy, executor_overrides={"self_check_steps": 0})
+    assert record.outcome == "success", record.reason
+    assert sim.translational_stiffness == 1000.0
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="the executor's quasi-static guards read the lagging arm's deflection as a rotated "
+    "sensor frame or a stalled arm (README, Second embodiment); remove this mark when they "
+    "no longer do",
+)
+def test_drawer_with_the_policy_on_the_arm_and_every_executor_guard() -> None:
+    record, _ = run(RunSpec("drawer-opening", robot="jaco", controller="policy", offset_deg=30))
+    assert record.outcome == "success", record.reason
+
+
+def test_robot_specs_and_variants() -> None:
+    assert set(EMBODIMENTS) == {"hook-hand", "jaco"}
+    spec = parse_robot("jaco:stiffness=5000,period=0.05")
+    assert (spec.name, spec.stiffness, spec.period) == ("jaco", 5000.0, 0.05)
+    sim = make_embodiment("hook-hand:stiffness=4000,period=0.2", task_config("drawer-opening"))
+    assert sim.translational_stiffness == 4000.0 and sim.control_period == 0.2
+    with pytest.raises(UnknownNameError, match="hook-hand, jaco"):
+        parse_robot("panda")
+    with pytest.raises(UnknownNameError, match="period, stiffness"):
+        parse_robot("jaco:damping=3")
+    with pytest.raises(InvalidInputError, match="stiffness"):
+        parse_robot("jaco:stiffness=1")
+
+
+def test_rotvec_matches_scipy() -> None:
+    for rot in Rotation.random(50, random_state=0):
+        np.testing.assert_allclose(rotvec(rot.as_matrix()), rot.as_rotvec(), atol=1e-9)
+
+
+def test_embodiment_experiment_types_and_report_table() -> None:
+    from constraint_aware.bench.embodiment import embodiment_experiments
+    from constraint_aware.bench.report import _embodiment_section
+
+    res = embodiment_experiments(
+        seeds=1,
+        robots=("jaco",),
+        controllers=("policy",),
+        variants=False,
+        tasks=("plate-sliding",),
+        low_threshold=False,
+    )
+    assert [(c.task, c.robot, c.controller, c.n) for c in res.transfer] == [
+        ("plate-sliding", "jaco", "policy", 1)
+    ]
+    assert res.paper[0].n == 1 and 0.0 <= res.paper[0].success_rate <= 1.0
+    text = "\n".join(_embodiment_section(res.to_dict()))
+    assert "| plate-sliding | policy |" in text
