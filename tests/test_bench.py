@@ -97,26 +97,16 @@ def test_paper_conditions_meet_the_issue_bars(bench_dir: Path) -> None:
     assert not paper["appendix_handle_paper_policy_without_torque_policy"]["success"]
 
 
-def test_replot_of_a_missing_dir_is_a_clear_error(tmp_path: Path) -> None:
-    proc = subprocess.run(
-        [sys.executable, "-m", "constraint_aware.cli", "bench", "--replot", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert proc.returncode == 2
-    assert "results.json" in proc.stderr
-
-
 @pytest.mark.parametrize(
     "content",
-    [b"", b'{"meta": {"quick": tru', b"\xff\xfe not utf-8", b"[" * 100_000, b'{"meta": 3}'],
-    ids=["empty", "truncated", "not-utf8", "deeply-nested", "not-a-bench"],
+    [None, b"", b'{"meta": {"quick": tru', b"\xff\xfe not utf-8", b"[" * 100_000, b'{"meta": 3}'],
+    ids=["missing", "empty", "truncated", "not-utf8", "deeply-nested", "not-a-bench"],
 )
-def test_replot_of_a_corrupted_results_file_is_a_clear_error(
-    tmp_path: Path, content: bytes
+def test_replot_of_a_missing_or_corrupted_results_file_is_a_clear_error(
+    tmp_path: Path, content: bytes | None
 ) -> None:
-    (tmp_path / "results.json").write_bytes(content)
+    if content is not None:
+        (tmp_path / "results.json").write_bytes(content)
     proc = subprocess.run(
         [sys.executable, "-m", "constraint_aware.cli", "bench", "--replot", str(tmp_path)],
         capture_output=True,
