@@ -133,16 +133,22 @@ def test_output_suffixes_checked_before_the_run(
     assert "steps" not in out.stdout
 
 
-def test_mp4_without_the_video_extra_fails_at_once(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("module", "flag", "suffix", "extra"),
+    [("imageio_ffmpeg", "--video", "mp4", "video"), ("mcap", "--mcap", "mcap", "mcap")],
+)
+def test_output_without_its_extra_fails_at_once(
+    tmp_path: Path, module: str, flag: str, suffix: str, extra: str
+) -> None:
     code = (
-        "import sys; sys.modules['imageio_ffmpeg'] = None; "
+        f"import sys; sys.modules[{module!r}] = None; "
         "from constraint_aware.cli import main; "
         f"sys.exit(main(['run', 'drawer-opening', '--json', {str(tmp_path / 'r.json')!r}, "
-        f"'--video', {str(tmp_path / 'v.mp4')!r}]))"
+        f"{flag!r}, {str(tmp_path / ('out.' + suffix))!r}]))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 2
-    assert "'video' extra" in out.stderr
+    assert f"'{extra}' extra" in out.stderr
     assert not (tmp_path / "r.json").exists()
 
 
@@ -299,19 +305,6 @@ def test_run_mcap_is_the_record(tmp_path: Path) -> None:
     record = read_mcap(tmp_path / "r.mcap")
     assert record.outcome == "force_limit"
     assert len(record.steps) == len(json.loads((tmp_path / "r.json").read_text())["steps"])
-
-
-def test_mcap_without_the_extra_fails_at_once(tmp_path: Path) -> None:
-    code = (
-        "import sys; sys.modules['mcap'] = None; "
-        "from constraint_aware.cli import main; "
-        f"sys.exit(main(['run', 'drawer-opening', '--json', {str(tmp_path / 'r.json')!r}, "
-        f"'--mcap', {str(tmp_path / 'r.mcap')!r}]))"
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-    assert out.returncode == 2
-    assert "'mcap' extra" in out.stderr
-    assert not (tmp_path / "r.json").exists()
 
 
 def test_bench_force_flag_reaches_run_bench(
