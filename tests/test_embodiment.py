@@ -253,3 +253,29 @@ def test_embodiment_experiment_types_and_report_table() -> None:
     assert res.paper[0].n == 1 and 0.0 <= res.paper[0].success_rate <= 1.0
     text = "\n".join(_embodiment_section(res.to_dict()))
     assert "| plate-sliding | policy |" in text
+
+
+@pytest.mark.parametrize("robot", ["hook-hand", "jaco"])
+@pytest.mark.parametrize("period", [0.02, 0.05, 0.1, 0.2])
+def test_a_control_period_lasts_exactly_its_nominal_time(robot: str, period: float) -> None:
+    sim = make_embodiment(f"{robot}:period={period}", task_config("drawer-opening"))
+    sim.reset()
+    pose = sim.read_pose()
+    t0 = sim.data.time
+    sim.command_pose(pose.moved(sim.admissible_direction() * 0.005))
+    sim.advance()
+    assert sim.data.time - t0 == pytest.approx(period, abs=1e-9)
+    assert sim.control_period == pytest.approx(period, abs=1e-12)
+    # the setpoint reached the commanded pose within the period
+    np.testing.assert_allclose(
+        sim.commanded_pose().position, pose.position + sim.admissible_direction() * 0.005, atol=1e-3
+    )
+
+
+@pytest.mark.parametrize("period", [0.051, 0.1001, 0.01])
+def test_a_period_that_is_not_a_whole_number_of_steps_is_refused(period: float) -> None:
+    if period >= 0.02:  # below, the spec's range check refuses it first
+        with pytest.raises(InvalidInputError, match="control_period"):
+            parse_robot(f"jaco:period={period}")
+    with pytest.raises(InvalidInputError, match="control_period"):
+        JacoSim(task_config("drawer-opening"), control_period=period)

@@ -15,7 +15,7 @@ import numpy as np
 from constraint_aware.errors import InvalidInputError, UnknownNameError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.sim.monitor import GroundTruthMonitor
-from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, SimulatedRobot
+from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, SimulatedRobot, period_substeps
 from constraint_aware.sim.tasks import TaskConfig
 
 DEFAULT_ROBOT = "hook-hand"
@@ -90,6 +90,8 @@ def parse_robot(text: str) -> RobotSpec:
         lo, hi = ROBOT_PARAMS[key]
         if not lo <= value <= hi:
             raise InvalidInputError(f"robot parameter {key}={value}; valid range {lo}-{hi}")
+        if key == "period":
+            period_substeps(value)  # a whole number of simulation steps
         values[key] = value
     return RobotSpec(name, **values)
 

@@ -10,12 +10,14 @@ is placed (`_place`, see sim/grasp.py).
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 
 import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from constraint_aware.errors import InvalidInputError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose, Wrench
@@ -27,6 +29,18 @@ SETTLE_TIME = 0.4  # [s] after placing the hand, and again after re-targeting th
 FILTER_STEPS = 10  # the wrench is averaged over the last 10 substeps (20 ms) of a period
 
 
+def period_substeps(period: float) -> int:
+    """The number of `TIMESTEP` substeps in a control period `period` [s]: a whole number, at
+    least `FILTER_STEPS` (the sensor's filter window lies inside the period)."""
+    steps = round(period / TIMESTEP)
+    if steps < FILTER_STEPS or not math.isclose(steps * TIMESTEP, period, rel_tol=1e-9):
+        raise InvalidInputError(
+            f"control_period {period} s; valid: a multiple of the {TIMESTEP * 1e3:g} ms "
+            f"simulation step, at least {FILTER_STEPS * TIMESTEP * 1e3:g} ms"
+        )
+    return steps
+
+
 class SimulatedRobot(ABC):
     """A MuJoCo hand on a compliant arm with a wrist F/T sensor, as the executor sees it.
 
@@ -36,7 +50,7 @@ class SimulatedRobot(ABC):
     model: mujoco.MjModel
     data: mujoco.MjData
     task: TaskConfig
-    control_period_s: float = CONTROL_PERIOD
+    _period_steps: int = round(CONTROL_PERIOD / TIMESTEP)
     settle_time: float = SETTLE_TIME  # [s] of each settling phase of the grasp (sim/grasp.py)
 
     def _bind_sensor(self, wrist_site: str, tcp_site: str, force: str, torque: str) -> None:
@@ -92,6 +106,15 @@ class SimulatedRobot(ABC):
 
     # --- Robot protocol ----------------------------------------------------------------------
     @property
+    def control_period_s(self) -> float:
+        """[s] the control period: exactly the time one `advance` simulates."""
+        return self._period_steps * TIMESTEP
+
+    @control_period_s.setter
+    def control_period_s(self, period: float) -> None:
+        self._period_steps = period_substeps(period)
+
+    @property
     def control_period(self) -> float:
         return self.control_period_s
 
@@ -107,14 +130,26 @@ class SimulatedRobot(ABC):
 
     def _settle_filter(self) -> None:
         """Step `FILTER_STEPS` substeps, averaging the wrench as the sensor's filter does."""
-        acc = np.zeros(6)
-        touched = False
+        self._filter_start()
         for _ in range(FILTER_STEPS):
-            self._step(1)
-            acc += self._sample_wrench()
-            touched = touched or self.in_contact()
-        self._filtered = acc / FILTER_STEPS
-        self._touched = touched
+            self._filter_step()
+        self._filter_end()
+
+    def _filter_start(self) -> None:
+        self._acc = np.zeros(6)
+        self._acc_touched = False
+        self._acc_n = 0
+
+    def _filter_step(self) -> None:
+        """One substep inside the filter window: step, then sample wrench and contact."""
+        self._step(1)
+        self._acc += self._sample_wrench()
+        self._acc_touched = self._acc_touched or self.in_contact()
+        self._acc_n += 1
+
+    def _filter_end(self) -> None:
+        self._filtered = self._acc / self._acc_n
+        self._touched = self._acc_touched
 
     def set_sensor_noise(
         self, rng: np.random.Generator, noise: float, bias: FloatArray | None = None
@@ -156,27 +191,36 @@ class SimulatedRobot(ABC):
         return self._touched
 
     def advance(self) -> None:
-        """One control period: the TCP pose setpoint moves along a straight line (orientation
-        by slerp) from the last setpoint to the commanded one, as an arm's Cartesian
-        interpolator does; the wrench is filtered over the period's last 20 ms."""
+        """One control period, exactly `control_period_s` of simulated time: the TCP pose
+        setpoint moves along a straight line (orientation by slerp) from the last setpoint to
+        the commanded one in `RAMP_CHUNKS` equal pieces, as an arm's Cartesian interpolator
+        does, reaching the goal at the start of the last piece; the wrench is filtered over the
+        period's last `FILTER_STEPS` substeps (20 ms)."""
         start = self.commanded_pose()
         goal = self._next_pose if self._next_pose is not None else start
         slerp = Slerp([0.0, 1.0], Rotation.concatenate([start.orientation, goal.orientation]))
         fractions = [i / RAMP_CHUNKS for i in range(1, RAMP_CHUNKS + 1)]
         orientations = slerp(fractions)  # one call: slerp is slow per call, not per rotation
-        n = round(self.control_period_s / TIMESTEP / RAMP_CHUNKS)
-        duration = RAMP_CHUNKS * n * TIMESTEP  # [s] over which the setpoint travels
+        steps = self._period_steps
+        # substep at which each piece starts (equal pieces, to the nearest substep), and the end
+        bounds = [round(i * steps / RAMP_CHUNKS) for i in range(RAMP_CHUNKS + 1)]
+        filter_from = steps - FILTER_STEPS
         turn = (goal.orientation * start.orientation.inv()).as_rotvec()
         self._set_setpoint_velocity(
-            np.concatenate([goal.position - start.position, turn]) / duration
+            np.concatenate([goal.position - start.position, turn]) / (steps * TIMESTEP)
         )
+        self._filter_start()
         for i, f in enumerate(fractions, start=1):
+            if i == RAMP_CHUNKS:
+                self._set_setpoint_velocity(np.zeros(6))  # the setpoint rests at the goal
             self._apply_setpoint(
                 Pose(start.position + f * (goal.position - start.position), orientations[i - 1])
             )
-            if i < RAMP_CHUNKS:
-                self._step(n)
-        self._set_setpoint_velocity(np.zeros(6))
-        self._step(n - FILTER_STEPS)
-        self._settle_filter()
+            first, last = bounds[i - 1], bounds[i]
+            plain = min(last, max(first, filter_from)) - first
+            if plain > 0:
+                self._step(plain)
+            for _ in range(first + plain, last):
+                self._filter_step()
+        self._filter_end()
         self._next_pose = None
