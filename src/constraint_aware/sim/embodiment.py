@@ -33,6 +33,8 @@ class Embodiment(GroundTruthMonitor, SimulatedRobot):
         from constraint_aware.sim.grasp import grasp
 
         grasp(self)
+        # the tracking time constant at the grasp configuration, fixed for the episode
+        self._tracking_time_constant = self._free_space_time_constant()
 
 
 @dataclass(frozen=True)

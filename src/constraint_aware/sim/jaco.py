@@ -43,7 +43,7 @@ from constraint_aware.errors import CapError, InvalidInputError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.sim.embodiment import Embodiment
 from constraint_aware.sim.objects import object_frame
-from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
+from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, TIMESTEP
 from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose
@@ -66,6 +66,9 @@ FINGER_TORQUE = 1.0  # [N m] dm-control's finger actuator force limit
 # have ~4 mm of slack before the fingertips catch it, and the hand would start out of contact).
 TCP_FROM_FLANGE = 0.139  # [m]
 _IK_CACHE: dict[tuple[float, ...], FloatArray] = {}  # grasp configurations, see _solve_ik
+_TAU_CACHE: dict[tuple[float, ...], float] = {}  # tracking time constants, see below
+TRACKING_STEP = 0.01  # [m] the free-space step measured for the tracking time constant
+TRACKING_WINDOW = 3.0  # [s] the longest measured response (a slower axis reports this)
 
 
 def _consecutive(index: FloatArray, what: str) -> slice:
@@ -121,6 +124,14 @@ class OscConfig:
     # (measured in free space at 1000 N/m: 12 mm and 4 deg of a 20 mm / 6 deg step remain
     # after 4 s; with it 1.8 mm and 1.5 deg)
     friction_torque_scale: float = 0.2  # [N m]
+    motor_inertia_compensation: float = 0.9  # [-] c: the fraction of each joint's reflected
+    # rotor inertia (the model's armature B, 4 / 2 kg m^2) that the joint torque loop hides:
+    # tau_m = tau_d + c B qdd (qdd from the previous substep, as a joint torque sensor sees it
+    # one sample late), i.e. torque feedback of gain c / (1 - c) (9 at c = 0.9; the range
+    # of torque-controlled arms, e.g. DLR's LWR); the arm then shows (1 - c) B. Without it
+    # the armature dominates the tool's apparent mass (58-82 kg of Lambda's translational
+    # diagonal at the drawer's grasp, 1.4-1.9 kg of it links and hand) and the tool settles
+    # with a ~0.9 s time constant at 1000 N/m, nine control periods.
     finger_stiffness: float = 5.0  # [N m/rad] finger position servo
     finger_damping: float = 0.05  # [N m s/rad]
 
@@ -135,6 +146,10 @@ class OscConfig:
             )
         if not 0.1 <= self.damping_ratio <= 5.0:
             raise InvalidInputError(f"damping_ratio {self.damping_ratio}; valid: 0.1-5")
+        if not 0.0 <= self.motor_inertia_compensation <= 0.95:
+            raise InvalidInputError(
+                f"motor_inertia_compensation {self.motor_inertia_compensation}; valid: 0-0.95"
+            )
 
 
 @dataclass(frozen=True)
@@ -299,6 +314,10 @@ class JacoSim(Embodiment):
         fric = self.osc.friction_compensation * m.dof_frictionloss[self._dof_slice]
         self._friction = fric if np.any(fric) else None
         self._eps = 1e-6 * np.eye(6)  # keeps Lambda finite at a singular configuration
+        comp = self.osc.motor_inertia_compensation * m.dof_armature[self._dof_slice]
+        self._rotor_comp = comp if np.any(comp) else None  # [kg m^2] c B per arm joint
+        self._arm_diag = (self._arm_dof, self._arm_dof)  # the arm joints' diagonal of M
+        self._full_m = np.zeros((m.nv, m.nv))
 
     def _is_in_subtree(self, body: int, root: int) -> bool:
         while body > 0:
@@ -313,7 +332,7 @@ class JacoSim(Embodiment):
         m, d = self.model, self.data
         jac, minv_jt, dofs = self._jac, self._minv_jt, self._dof_slice
         mujoco.mj_jacSite(m, d, jac[:3], jac[3:], self._tcp_site)
-        mujoco.mj_solveM(m, d, minv_jt, jac)  # rows: (M^-1 J^T)^T
+        self._solve_inertia(d, jac, minv_jt)
         j_arm, minv_arm = jac[:, dofs], minv_jt[:, dofs]
         lam = np.linalg.inv(j_arm @ minv_arm.T + self._eps)
         err = self._err
@@ -339,7 +358,75 @@ class JacoSim(Embodiment):
         excess = float(np.max(np.abs(tau) / room))
         if excess > 1.0:
             tau /= excess
+        if self._rotor_comp is not None:
+            bias = bias + self._rotor_comp * d.qacc[dofs]  # the torque loop (OscConfig)
         np.clip(tau + bias, -self._torque_limit, self._torque_limit, out=d.ctrl[self._act_slice])
+
+    def _solve_inertia(self, d: mujoco.MjData, jac: FloatArray, out: FloatArray) -> None:
+        """out (6, nv) = (M^-1 J^T)^T for the inertia the controller shapes: M less the rotor
+        inertia its torque loop hides (OscConfig.motor_inertia_compensation)."""
+        if self._rotor_comp is None:
+            mujoco.mj_solveM(self.model, d, out, jac)
+            return
+        full = self._full_m
+        mujoco.mj_fullM(self.model, d, full)
+        full[self._arm_diag] -= self._rotor_comp
+        out[:] = np.linalg.solve(full, jac.T).T
+
+    def _axis_dynamics(self, data: mujoco.MjData) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Each task-space axis as the OSC makes it (module docstring): stiffness K_ii, damping
+        D_ii = 2 zeta sqrt(K_ii Lambda_ii), apparent mass Lambda_ii at `data`'s configuration
+        (the arm's M less the rotor inertia the torque loop hides; the fingers ride along)."""
+        m = self.model
+        jac, minv_jt = np.zeros((6, m.nv)), np.zeros((6, m.nv))
+        mujoco.mj_jacSite(m, data, jac[:3], jac[3:], self._tcp_site)
+        self._solve_inertia(data, jac, minv_jt)
+        dofs = self._dof_slice
+        inverse = jac[:, dofs] @ minv_jt[:, dofs].T + self._eps
+        lam = np.asarray(np.linalg.inv(inverse).diagonal(), dtype=float)
+        damping = np.asarray(self._damp_gain * np.sqrt(lam), dtype=float)
+        return np.asarray(self._k, dtype=float), damping, lam
+
+    def _free_space_time_constant(self) -> float:
+        """[s] the tool point's tracking time constant, measured: the slowest of three
+        `TRACKING_STEP` setpoint steps (world x, y, z) from rest at the grasp posture, with
+        contacts off (free space), to 63.2 % of the step. Measured rather than computed
+        because the joints' dry friction (partly fed forward) slows the linear response
+        (`axis_time_constants`) by up to ~40 % at 1000 N/m. Runs on its own MjData, so the
+        episode's state is untouched; cached per base, posture and controller gains."""
+        key = (*np.round(self.base, 9), *np.round(self._posture, 9), *vars(self.osc).values())
+        cached = _TAU_CACHE.get(key)
+        if cached is not None:
+            return cached
+        m = self.model
+        episode = (self.data, self._setpoint, self._sp_vel)
+        flags = m.opt.disableflags
+        m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        slowest = 0.0
+        try:
+            for axis in np.eye(3):
+                self.data = scratch = mujoco.MjData(m)
+                scratch.qpos[self._arm_qpos] = self._posture
+                scratch.qpos[self._finger_qpos] = episode[0].qpos[self._finger_qpos]
+                scratch.ctrl[:] = episode[0].ctrl
+                mujoco.mj_forward(m, scratch)
+                start = self.read_pose()
+                self._sp_vel = np.zeros(6)
+                self._apply_setpoint(start.moved(TRACKING_STEP * axis))
+                rise = TRACKING_WINDOW
+                for i in range(1, round(TRACKING_WINDOW / TIMESTEP) + 1):
+                    self._step(1)
+                    moved = (scratch.site_xpos[self._tcp_site] - start.position) @ axis
+                    if moved >= (1.0 - math.exp(-1.0)) * TRACKING_STEP:
+                        rise = i * TIMESTEP
+                        break
+                slowest = max(slowest, rise)
+        finally:
+            m.opt.disableflags = flags
+            self.data, setpoint, self._sp_vel = episode
+            self._apply_setpoint(setpoint)
+        _TAU_CACHE[key] = slowest
+        return slowest
 
     @staticmethod
     def _wrapped(a: FloatArray) -> FloatArray:

@@ -41,6 +41,38 @@ def period_substeps(period: float) -> int:
     return steps
 
 
+def step_rise_time(stiffness: float, damping: float, mass: float) -> float:
+    """[s] when a mass-spring-damper's response to a setpoint step first reaches 1 - 1/e
+    (63.2 %) of the step: the time constant of its first-order approximation. stiffness
+    [N/m or N m/rad], damping [N s/m or N m s/rad], mass [kg or kg m^2], all positive."""
+    omega = math.sqrt(stiffness / mass)  # [rad/s] natural frequency
+    zeta = damping / (2.0 * math.sqrt(stiffness * mass))
+
+    def response(t: float) -> float:
+        """The normalized step response at time t [s] (closed form)."""
+        if abs(zeta - 1.0) < 1e-9:
+            return 1.0 - (1.0 + omega * t) * math.exp(-omega * t)
+        if zeta < 1.0:
+            wd = omega * math.sqrt(1.0 - zeta * zeta)
+            decay = math.exp(-zeta * omega * t)
+            return 1.0 - decay * (
+                math.cos(wd * t) + zeta / math.sqrt(1.0 - zeta * zeta) * math.sin(wd * t)
+            )
+        root = math.sqrt(zeta * zeta - 1.0)
+        s1, s2 = -omega * (zeta - root), -omega * (zeta + root)
+        return 1.0 - (s2 * math.exp(s1 * t) - s1 * math.exp(s2 * t)) / (s2 - s1)
+
+    target = 1.0 - math.exp(-1.0)
+    # the response rises monotonically up to its first crossing; bracket it, then bisect
+    lo, hi = 0.0, 0.1 / omega
+    while response(hi) < target:
+        lo, hi = hi, 2.0 * hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if response(mid) < target else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
 class SimulatedRobot(ABC):
     """A MuJoCo hand on a compliant arm with a wrist F/T sensor, as the executor sees it.
 
@@ -50,6 +82,7 @@ class SimulatedRobot(ABC):
     model: mujoco.MjModel
     data: mujoco.MjData
     task: TaskConfig
+    _arm_act: FloatArray  # the arm's actuator ids (one per Cartesian axis for servo arms)
     _period_steps: int = round(CONTROL_PERIOD / TIMESTEP)
     settle_time: float = SETTLE_TIME  # [s] of each settling phase of the grasp (sim/grasp.py)
 
@@ -94,6 +127,51 @@ class SimulatedRobot(ABC):
     @abstractmethod
     def translational_stiffness(self) -> float:
         """[N/m] the arm's Cartesian impedance stiffness along the motion."""
+
+    def _axis_dynamics(self, data: mujoco.MjData) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Each Cartesian axis of the tool (x, y, z, then rotations about x, y, z) as a
+        mass-spring-damper at `data`'s configuration (positions computed): (stiffness (6,)
+        [N/m, N m/rad], damping (6,) [N s/m, N m s/rad], apparent mass (6,) [kg, kg m^2]).
+
+        This default is for an arm of position servos, one per Cartesian axis (`_arm_dofs`,
+        `_arm_act`: three slide joints, then three hinges): each servo's own gains (MuJoCo's
+        kp, kv, plus the joint's damping) against its joint-space inertia (armature included).
+        """
+        m = self.model
+        full = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, data, full)
+        acts = np.asarray(self._arm_act, dtype=int)
+        dofs = m.jnt_dofadr[m.actuator_trnid[acts, 0]]
+        stiffness = m.actuator_gainprm[acts, 0].copy()
+        damping = -m.actuator_biasprm[acts, 2] + m.dof_damping[dofs]
+        return stiffness, damping, full[dofs, dofs].copy()
+
+    def axis_time_constants(self) -> FloatArray:
+        """(6,) [s] each Cartesian axis's tracking time constant in free space at the current
+        configuration, from the linear model (`step_rise_time` of `_axis_dynamics`)."""
+        scratch = mujoco.MjData(self.model)  # the episode's own data stays untouched
+        scratch.qpos[:] = self.data.qpos
+        mujoco.mj_forward(self.model, scratch)
+        axes = zip(*self._axis_dynamics(scratch), strict=True)
+        return np.array([step_rise_time(*axis) for axis in axes])
+
+    def _free_space_time_constant(self) -> float:
+        """[s] the slowest translational axis's time constant at the current configuration.
+        This default is exact for linear servos (the hook hand's); an arm with dry friction
+        or coupled axes measures a step response instead (sim/jaco.py)."""
+        return float(np.max(self.axis_time_constants()[:3]))
+
+    @property
+    def tracking_time_constant(self) -> float:
+        """[s] the time constant with which the tool point settles onto a commanded position
+        in free space (the Robot protocol's optional member): the 63.2 % rise time of the
+        slowest translational axis at the grasp configuration, from the robot's own gains and
+        masses (fixed when the embodiment is reset; before that, at the current state).
+        Rotations are not included: per-axis values are in `axis_time_constants`."""
+        tau = getattr(self, "_tracking_time_constant", None)
+        if tau is None:
+            tau = self._free_space_time_constant()
+        return float(tau)
 
     def _step(self, n: int) -> None:
         """Advance the physics `n` substeps (override to run a control law per substep)."""
