@@ -141,12 +141,14 @@ class _TrueDirection(FixedDirection):
 
 
 @pytest.mark.parametrize("name", ["drawer-opening", "plate-sliding", "pole-pulling"])
-def test_grasp_holds_under_a_scripted_pull(name: str) -> None:
+def test_grasp_holds_under_a_scripted_pull(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
     task = task_config(name)
     sim = JacoSim(task)
     sim.reset()
-    # the subject is the grasp: the executor's start-of-run self-check assumes a quasi-static
-    # arm (F = k x deflection), which the lagging Jaco is not (README, "Second embodiment")
+    # the subject is the grasp: the executor's start-of-run self-check and arm-deflection stop
+    # assume a quasi-static arm (F = k x deflection), which the lagging Jaco is not (README,
+    # "Second embodiment"; its lag is `tracking_time_constant`)
+    monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
     cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
     record = Executor(sim, _TrueDirection(sim), cfg, monitor=sim).run(sim.admissible_direction())
     assert record.outcome == "success", record.reason

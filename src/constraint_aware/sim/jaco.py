@@ -12,20 +12,26 @@ limit). The arm base is placed per task from the object's pose (`arm_base`).
 Control. An operational-space impedance controller on MuJoCo's Jacobian and mass matrix runs
 every 2 ms substep (`OscConfig`):
 
-    tau = J^T (K e - D (v - v_d)) + qfrc_bias + N^T tau_posture,  within the motors' limits
+    tau = J^T (K e - D (v - f v_d)) + qfrc_bias + N^T tau_posture + c B qdd,
+    within the motors' limits
 
 e: (position, rotation-vector) error of the tool point from its setpoint, v = J qdot, v_d the
-setpoint's velocity while the Cartesian interpolator moves it (zero at rest); K =
-diag(k_t I3, k_r I3); D = 2 zeta sqrt(K) sqrt(diag Lambda), Lambda = (J M^-1 J^T)^-1 the
-task-space inertia from `mj_solveM` (each axis damped at `damping_ratio` of its own apparent
-mass); qfrc_bias compensates gravity (arm, hand) and Coriolis terms; N^T = I - J^T Lambda J M^-1
-is the dynamically consistent null-space projector carrying a joint-space posture spring (toward
-the grasp configuration) and a repulsion within `limit_margin` of a joint limit; the joints' dry
-friction (dm-control's model: 2 N m / 1 N m frictionloss) is fed forward in the direction of the
-commanded torque. The motors are torque sources (`motor` actuators); at a motor's limit the
-task torque is scaled down as a whole (clipping joint by joint turns the force). The
-wrist sensor reads the wrench between flange and hand, so the arm's remaining friction and its
-large reflected inertia (armature 4 / 2 kg m^2) show as tracking error and lag, not as force.
+setpoint's velocity while the Cartesian interpolator moves it, f = `velocity_feedforward` (0:
+the damping acts on the tool's own velocity); K = diag(k_t I3, k_r I3); D = 2 zeta sqrt(K)
+sqrt(diag Lambda), Lambda = (J M_c^-1 J^T)^-1 the task-space inertia (each axis damped at
+`damping_ratio` of its own apparent mass) of M_c = M - c B, the inertia left after the joint
+torque loop hides the fraction c = `motor_inertia_compensation` of the rotor inertia B (the
+model's armature) with c B qdd (qdd of the previous substep); qfrc_bias compensates gravity
+(arm, hand) and Coriolis terms; N^T = I - J^T Lambda J M_c^-1 is the dynamically consistent
+null-space projector carrying a joint-space posture spring (toward the grasp configuration) and
+a repulsion within `limit_margin` of a joint limit; the joints' dry friction (dm-control's
+model: 2 N m / 1 N m frictionloss) is fed forward in the direction of the commanded torque. The
+motors are torque sources (`motor` actuators); at the motors' limits the rotational part of the
+task torque yields first, then the task torque is scaled down as a whole (clipping joint by
+joint turns the force). The wrist sensor reads the wrench between flange and hand, so the arm's
+remaining friction and reflected inertia show as tracking error and lag, not as force: the
+tool settles with `tracking_time_constant` (measured once per grasp posture, ~0.3 s at the
+default 1000 N/m).
 """
 
 from __future__ import annotations
@@ -114,6 +120,14 @@ class OscConfig:
     rotational_stiffness: float = 30.0  # [N m/rad] k_r: k_t x (0.17 m)^2, the same stiffness
     # felt at the fingertips' distance from the wrist; well above the 1 N m joint friction
     damping_ratio: float = 1.0  # [-] zeta of each task-space axis against its apparent mass
+    velocity_feedforward: float = 0.0  # [-] f: the damping acts on v - f v_d. 0 (damping
+    # against the tool's own velocity, as the hook hand's servos): at f = 1 the damping pushed
+    # D v_d into any constraint the setpoint moved against (D ~ 170 N s/m: 17 N at 1 cm per
+    # period, on top of k x 1 cm = 10 N) and its kick at each period's start and end made the
+    # forces across the pole and the drawer's bar flip sign every period (measured, paper
+    # offsets, default policy, guards off: pole, door and handle failed at f = 1, 0.5; the
+    # pole, handle, drawer and plate succeed at 0; the free-space ramp lag is D v / k, ~17 mm
+    # at 10 cm/s)
     posture_stiffness: float = 5.0  # [N m/rad] null-space spring toward the grasp posture
     posture_damping: float = 1.0  # [N m s/rad]
     limit_margin: float = 0.15  # [rad] joint-limit repulsion starts this far from a limit
@@ -339,8 +353,8 @@ class JacoSim(Embodiment):
         err[:3] = self._sp_pos - d.site_xpos[self._tcp_site]
         err[3:] = rotvec(self._sp_mat @ d.site_xmat[self._tcp_site].reshape(3, 3).T)
         qvel = d.qvel[dofs]
-        # damping on the velocity error: a moving setpoint is tracked without a damping lag
-        vel_err = j_arm @ qvel - self._sp_vel
+        # damping on the tool's velocity (less f times the setpoint's: OscConfig)
+        vel_err = j_arm @ qvel - self.osc.velocity_feedforward * self._sp_vel
         wrench = self._k * err - self._damp_gain * np.sqrt(lam.diagonal()) * vel_err
         # null space: posture spring and joint-limit repulsion, projected so that they do not
         # disturb the tool point (dynamically consistent: N^T = I - J^T Lambda J M^-1)
@@ -349,15 +363,32 @@ class JacoSim(Embodiment):
         tau0 -= self.osc.posture_damping * qvel
         tau0 -= self._limit_gain * (np.minimum(q - self._lo, 0.0) + np.maximum(q - self._hi, 0.0))
         tau = j_arm.T @ (wrench - lam @ (minv_arm @ tau0)) + tau0
+        bias = d.qfrc_bias[dofs]
+        room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
+        if self._friction is not None:
+            room = np.maximum(room - self._friction, 1e-3)  # what the feed-forward below adds
+        # at the motors' limits the rotation yields first: a large orientation error (the
+        # small wrist motors reach their 6.8 N m at 13 deg x 30 N m/rad) must not starve the
+        # force that holds the tool point on its path
+        rotation = j_arm[3:].T @ wrench[3:]
+        excess = np.abs(tau) / room
+        if float(np.max(excess)) > 1.0:
+            translation = tau - rotation
+            fit = float(np.max(np.abs(translation) / room))
+            if fit >= 1.0:
+                tau = translation / fit
+            else:
+                with np.errstate(divide="ignore"):
+                    share = (room - np.sign(rotation) * translation) / np.abs(rotation)
+                tau = translation + min(1.0, float(np.min(share))) * rotation
         if self._friction is not None:
             tau += self._friction * np.tanh(tau / self.osc.friction_torque_scale)
-        bias = d.qfrc_bias[dofs]
         # at a motor's limit, scale the whole task torque down rather than clip joints one by
         # one: clipping would turn the Cartesian force away from the commanded direction
         room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
-        excess = float(np.max(np.abs(tau) / room))
-        if excess > 1.0:
-            tau /= excess
+        excess_all = float(np.max(np.abs(tau) / room))
+        if excess_all > 1.0:
+            tau /= excess_all
         if self._rotor_comp is not None:
             bias = bias + self._rotor_comp * d.qacc[dofs]  # the torque loop (OscConfig)
         np.clip(tau + bias, -self._torque_limit, self._torque_limit, out=d.ctrl[self._act_slice])
@@ -447,9 +478,11 @@ class JacoSim(Embodiment):
         self._sp_vel = np.asarray(twist, dtype=float)
 
     def _apply_setpoint(self, pose: Pose) -> None:
+        """A setpoint at rest (no segment): the grasp, a hold, a measurement."""
         self._setpoint = pose
         self._sp_pos = np.asarray(pose.position, dtype=float)
         self._sp_mat = pose.orientation.as_matrix()
+        self._sp_vel = np.zeros(6)
 
     def _rest_at_measured(self) -> None:
         self._apply_setpoint(self.read_pose())
