@@ -59,13 +59,9 @@ def _jaco(task: TaskConfig, spec: RobotSpec) -> Embodiment:
 
     osc = OscConfig()
     if spec.stiffness is not None:
-        # rotational stiffness follows at the same fingertip-distance ratio (OscConfig)
-        ratio = osc.rotational_stiffness / osc.translational_stiffness
-        osc = replace(
-            osc,
-            translational_stiffness=spec.stiffness,
-            rotational_stiffness=spec.stiffness * ratio,
-        )
+        # translational only, as the hook hand's `hand__translational_stiffness`: the wrist's
+        # rotational stiffness stays (like with like)
+        osc = replace(osc, translational_stiffness=spec.stiffness)
     return JacoSim(task, osc, control_period=spec.period or CONTROL_PERIOD)
 
 

@@ -48,6 +48,7 @@ from scipy.spatial.transform import Rotation
 from constraint_aware.errors import CapError, InvalidInputError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.sim.embodiment import Embodiment
+from constraint_aware.sim.hand import HandConfig
 from constraint_aware.sim.objects import object_frame
 from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, TIMESTEP
 from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
@@ -117,8 +118,15 @@ class OscConfig:
     """The arm's operational-space impedance controller. Units in brackets."""
 
     translational_stiffness: float = 1000.0  # [N/m] k_t, each axis (the step force: k_t x 1 cm)
-    rotational_stiffness: float = 30.0  # [N m/rad] k_r: k_t x (0.17 m)^2, the same stiffness
-    # felt at the fingertips' distance from the wrist; well above the 1 N m joint friction
+    rotational_stiffness: float = HandConfig.rotational_stiffness  # [N m/rad] k_r: the hook
+    # hand's wrist value (embodiment 1, 5 N m/rad): the hooks and the knob grasp let the
+    # object turn the hand, and a stiffer wrist fought it. Measured at 30 N m/rad (k_t x
+    # (0.17 m)^2), default policy, door at +15 deg: the commanded turns (the executor turns
+    # the hand with d) were not followed, the wrist neared its singularity (Lambda_xx 10 ->
+    # 71,000 kg at 5 deg of door) and the run ended on the force limit; at 10 N m/rad a
+    # timeout at 36 deg; at 5 it opens (60 deg). The price: against the wrist joints' 1 N m
+    # dry friction, free-space turns under 1/k_r (11 deg) are followed only in part
+
     damping_ratio: float = 1.0  # [-] zeta of each task-space axis against its apparent mass
     velocity_feedforward: float = 0.0  # [-] f: the damping acts on v - f v_d. 0 (damping
     # against the tool's own velocity, as the hook hand's servos): at f = 1 the damping pushed
