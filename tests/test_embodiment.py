@@ -29,7 +29,7 @@ from constraint_aware.sim.jaco import (
     jaco_model_dir,
     rotvec,
 )
-from constraint_aware.sim.robot_adapter import SimulatedRobot
+from constraint_aware.sim.robot_adapter import SimulatedRobot, rotation_matrix
 from constraint_aware.sim.tasks import TASKS, task_config
 from constraint_aware.spatial import Pose, Wrench
 
@@ -237,6 +237,8 @@ def test_robot_specs_and_variants() -> None:
 def test_rotvec_matches_scipy() -> None:
     for rot in Rotation.random(50, random_state=0):
         np.testing.assert_allclose(rotvec(rot.as_matrix()), rot.as_rotvec(), atol=1e-9)
+        np.testing.assert_allclose(rotation_matrix(rot.as_rotvec()), rot.as_matrix(), atol=1e-12)
+    np.testing.assert_array_equal(rotation_matrix(np.zeros(3)), np.eye(3))
 
 
 def test_embodiment_experiment_types_and_report_table() -> None:

@@ -43,6 +43,7 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from scipy.linalg.lapack import dposv
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.errors import CapError, InvalidInputError
@@ -98,6 +99,15 @@ def rotvec(rot: FloatArray) -> FloatArray:
         return np.asarray(Rotation.from_matrix(rot).as_rotvec())  # near pi: v loses the axis
     f = angle / s
     return np.array([x * f, y * f, z * f])
+
+
+def _spd_solve(a: FloatArray, b: FloatArray) -> FloatArray:
+    """x with a x = b for a symmetric positive definite (n, n), b (n, k): LAPACK's Cholesky
+    solver, called directly (numpy's solve and inv cost 3-4x more per call at this size)."""
+    _, x, info = dposv(a, b)
+    if info != 0:  # not positive definite (numerically): the general solver
+        return np.asarray(np.linalg.solve(a, b), dtype=float)
+    return np.asarray(x, dtype=float)
 
 
 def jaco_model_dir() -> Path:
@@ -313,7 +323,7 @@ class JacoSim(Embodiment):
             g for g in range(m.ngeom) if self._is_in_subtree(int(m.geom_bodyid[g]), hand_body)
         }
         self._bind_monitor(hand_geoms, OBJECT_PREFIX)
-        self._setpoint = Pose(np.zeros(3), Rotation.identity())
+        self._setpoint: Pose | None = Pose(np.zeros(3), Rotation.identity())
         self._sp_pos = np.zeros(3)
         self._sp_mat = np.eye(3)
         self._sp_vel = np.zeros(6)  # [m/s, rad/s] the setpoint's velocity (interpolator)
@@ -340,6 +350,7 @@ class JacoSim(Embodiment):
         self._rotor_comp = comp if np.any(comp) else None  # [kg m^2] c B per arm joint
         self._arm_diag = (self._arm_dof, self._arm_dof)  # the arm joints' diagonal of M
         self._full_m = np.zeros((m.nv, m.nv))
+        self._rhs = np.hstack([np.eye(6), np.zeros((6, 1))])  # see _control
 
     def _is_in_subtree(self, body: int, root: int) -> bool:
         while body > 0:
@@ -356,21 +367,27 @@ class JacoSim(Embodiment):
         mujoco.mj_jacSite(m, d, jac[:3], jac[3:], self._tcp_site)
         self._solve_inertia(d, jac, minv_jt)
         j_arm, minv_arm = jac[:, dofs], minv_jt[:, dofs]
-        lam = np.linalg.inv(j_arm @ minv_arm.T + self._eps)
-        err = self._err
-        err[:3] = self._sp_pos - d.site_xpos[self._tcp_site]
-        err[3:] = rotvec(self._sp_mat @ d.site_xmat[self._tcp_site].reshape(3, 3).T)
         qvel = d.qvel[dofs]
-        # damping on the tool's velocity (less f times the setpoint's: OscConfig)
-        vel_err = j_arm @ qvel - self.osc.velocity_feedforward * self._sp_vel
-        wrench = self._k * err - self._damp_gain * np.sqrt(lam.diagonal()) * vel_err
         # null space: posture spring and joint-limit repulsion, projected so that they do not
         # disturb the tool point (dynamically consistent: N^T = I - J^T Lambda J M^-1)
         q = d.qpos[self._qpos_slice]
         tau0 = self.osc.posture_stiffness * self._wrapped(self._posture - q)
         tau0 -= self.osc.posture_damping * qvel
         tau0 -= self._limit_gain * (np.minimum(q - self._lo, 0.0) + np.maximum(q - self._hi, 0.0))
-        tau = j_arm.T @ (wrench - lam @ (minv_arm @ tau0)) + tau0
+        # Lambda and Lambda J M^-1 tau0 from one solve of Lambda^-1 [Lambda | y] = [I | ...]
+        rhs = self._rhs
+        rhs[:, 6] = minv_arm @ tau0
+        lam_and_y = _spd_solve(j_arm @ minv_arm.T + self._eps, rhs)
+        lam_diag, lam_tau0 = lam_and_y[:, :6].diagonal(), lam_and_y[:, 6]
+        err = self._err
+        err[:3] = self._sp_pos - d.site_xpos[self._tcp_site]
+        err[3:] = rotvec(self._sp_mat @ d.site_xmat[self._tcp_site].reshape(3, 3).T)
+        # damping on the tool's velocity (less f times the setpoint's: OscConfig)
+        vel_err = j_arm @ qvel
+        if self.osc.velocity_feedforward:
+            vel_err -= self.osc.velocity_feedforward * self._sp_vel
+        wrench = self._k * err - self._damp_gain * np.sqrt(lam_diag) * vel_err
+        tau = j_arm.T @ (wrench - lam_tau0) + tau0
         bias = d.qfrc_bias[dofs]
         room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
         if self._friction is not None:
@@ -410,7 +427,7 @@ class JacoSim(Embodiment):
         full = self._full_m
         mujoco.mj_fullM(self.model, d, full)
         full[self._arm_diag] -= self._rotor_comp
-        out[:] = np.linalg.solve(full, jac.T).T
+        out[:] = _spd_solve(full, jac.T).T
 
     def _axis_dynamics(self, data: mujoco.MjData) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Each task-space axis as the OSC makes it (module docstring): stiffness K_ii, damping
@@ -438,7 +455,7 @@ class JacoSim(Embodiment):
         if cached is not None:
             return cached
         m = self.model
-        episode = (self.data, self._setpoint, self._sp_vel)
+        episode = (self.data, self.commanded_pose(), self._sp_vel)
         flags = m.opt.disableflags
         m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         slowest = 0.0
@@ -486,16 +503,23 @@ class JacoSim(Embodiment):
         self._sp_vel = np.asarray(twist, dtype=float)
 
     def _apply_setpoint(self, pose: Pose) -> None:
-        """A setpoint at rest (no segment): the grasp, a hold, a measurement."""
         self._setpoint = pose
         self._sp_pos = np.asarray(pose.position, dtype=float)
         self._sp_mat = pose.orientation.as_matrix()
-        self._sp_vel = np.zeros(6)
+
+    setpoint_as_matrix = True  # the OSC works on the setpoint's rotation matrix
+
+    def _apply_setpoint_matrix(self, position: FloatArray, rotation: FloatArray) -> None:
+        self._setpoint = None  # built from the matrices when asked (commanded_pose)
+        self._sp_pos = position
+        self._sp_mat = rotation
 
     def _rest_at_measured(self) -> None:
         self._apply_setpoint(self.read_pose())
 
     def commanded_pose(self) -> Pose:
+        if self._setpoint is None:
+            self._setpoint = Pose(self._sp_pos.copy(), Rotation.from_matrix(self._sp_mat))
         return self._setpoint
 
     def _hand_extent(self, finger_angle: float, palm_only: bool = False) -> float:

@@ -29,6 +29,17 @@ SETTLE_TIME = 0.4  # [s] after placing the hand, and again after re-targeting th
 FILTER_STEPS = 10  # the wrench is averaged over the last 10 substeps (20 ms) of a period
 
 
+def rotation_matrix(rotvec: FloatArray) -> FloatArray:
+    """(3, 3) the rotation of a rotation vector (3,) [rad] (Rodrigues; scipy's costs ~10x
+    more per call, and the interpolator calls it every chunk)."""
+    angle = math.sqrt(float(rotvec @ rotvec))
+    if angle < 1e-12:
+        return np.eye(3)
+    x, y, z = rotvec / angle
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
 def period_substeps(period: float) -> int:
     """The number of `TIMESTEP` substeps in a control period `period` [s]: a whole number, at
     least `FILTER_STEPS` (the sensor's filter window lies inside the period)."""
@@ -173,6 +184,14 @@ class SimulatedRobot(ABC):
             tau = self._free_space_time_constant()
         return float(tau)
 
+    #: whether the interpolator hands each piece to `_apply_setpoint_matrix` (a controller
+    #: that works on matrices: no Rotation objects per piece) instead of `_apply_setpoint`
+    setpoint_as_matrix: bool = False
+
+    def _apply_setpoint_matrix(self, position: FloatArray, rotation: FloatArray) -> None:
+        """`_apply_setpoint` from a position (3,) [m] and a rotation matrix (3, 3)."""
+        self._apply_setpoint(Pose(position, Rotation.from_matrix(rotation)))
+
     def _step(self, n: int) -> None:
         """Advance the physics `n` substeps (override to run a control law per substep)."""
         mujoco.mj_step(self.model, self.data, nstep=n)
@@ -270,30 +289,34 @@ class SimulatedRobot(ABC):
 
     def advance(self) -> None:
         """One control period, exactly `control_period_s` of simulated time: the TCP pose
-        setpoint moves along a straight line (orientation by slerp) from the last setpoint to
-        the commanded one in `RAMP_CHUNKS` equal pieces, as an arm's Cartesian interpolator
-        does, reaching the goal at the start of the last piece; the wrench is filtered over the
-        period's last `FILTER_STEPS` substeps (20 ms)."""
+        setpoint moves along a straight line (orientation by slerp: about one fixed axis) from
+        the last setpoint to the commanded one in `RAMP_CHUNKS` equal pieces, as an arm's
+        Cartesian interpolator does, reaching the goal at the start of the last piece; the
+        wrench is filtered over the period's last `FILTER_STEPS` substeps (20 ms)."""
         start = self.commanded_pose()
         goal = self._next_pose if self._next_pose is not None else start
-        slerp = Slerp([0.0, 1.0], Rotation.concatenate([start.orientation, goal.orientation]))
         fractions = [i / RAMP_CHUNKS for i in range(1, RAMP_CHUNKS + 1)]
-        orientations = slerp(fractions)  # one call: slerp is slow per call, not per rotation
+        if not self.setpoint_as_matrix:
+            pair = Rotation.concatenate([start.orientation, goal.orientation])
+            orientations = Slerp([0.0, 1.0], pair)(fractions)  # one call: slow per call
         steps = self._period_steps
         # substep at which each piece starts (equal pieces, to the nearest substep), and the end
         bounds = [round(i * steps / RAMP_CHUNKS) for i in range(RAMP_CHUNKS + 1)]
         filter_from = steps - FILTER_STEPS
         turn = (goal.orientation * start.orientation.inv()).as_rotvec()
-        self._set_setpoint_velocity(
-            np.concatenate([goal.position - start.position, turn]) / (steps * TIMESTEP)
-        )
+        shift = goal.position - start.position
+        first_rotation = start.orientation.as_matrix()
+        self._set_setpoint_velocity(np.concatenate([shift, turn]) / (steps * TIMESTEP))
         self._filter_start()
         for i, f in enumerate(fractions, start=1):
             if i == RAMP_CHUNKS:
                 self._set_setpoint_velocity(np.zeros(6))  # the setpoint rests at the goal
-            self._apply_setpoint(
-                Pose(start.position + f * (goal.position - start.position), orientations[i - 1])
-            )
+            position = start.position + f * shift
+            if self.setpoint_as_matrix:
+                # slerp: the turn's rotation vector scaled (the rotations of scipy's Slerp)
+                self._apply_setpoint_matrix(position, rotation_matrix(f * turn) @ first_rotation)
+            else:
+                self._apply_setpoint(Pose(position, orientations[i - 1]))
             first, last = bounds[i - 1], bounds[i]
             plain = min(last, max(first, filter_from)) - first
             if plain > 0:
