@@ -335,3 +335,18 @@ def test_tracking_time_constant_is_fixed_per_episode_and_follows_the_gains() -> 
         assert sim.data.time == before  # measured on its own data: the episode is untouched
     assert taus[1] < taus[0]  # a stiffer arm settles faster
     assert 0.05 < taus[1] < taus[0] < 1.0
+
+
+@pytest.mark.parametrize("stiffness", [500, 100000])
+def test_the_arm_rests_stably_at_the_ends_of_the_stiffness_range(stiffness: int) -> None:
+    # the OSC runs at 250 Hz (OscConfig.control_substeps): the stiffest variant must not ring
+    sim = make_embodiment(f"jaco:stiffness={stiffness}", task_config("drawer-opening"))
+    sim.reset()
+    start = sim.read_pose().position
+    for _ in range(10):
+        sim.command_pose(sim.commanded_pose())
+        sim.advance()
+    assert np.all(np.isfinite(sim.data.qpos))
+    assert np.linalg.norm(sim.read_pose().position - start) < 1e-3
+    assert np.max(np.abs(sim.data.qvel)) < 0.05
+    assert sim.grasp_contact()

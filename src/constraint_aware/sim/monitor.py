@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.geometry import FloatArray, unit
 from constraint_aware.sim.objects import HANDLE_SITE, OBJECT_GEOM_PREFIX, OBJECT_JOINT
+from constraint_aware.sim.robot_adapter import rotation_from_matrix
 from constraint_aware.sim.tasks import TaskConfig
 
 
@@ -68,8 +69,8 @@ class GroundTruthMonitor:
 
     def _hand_in_handle(self) -> tuple[FloatArray, Rotation]:
         d = self.data
-        h_rot = Rotation.from_matrix(d.site_xmat[self._handle_site].reshape(3, 3))
-        t_rot = Rotation.from_matrix(d.site_xmat[self._tcp_site].reshape(3, 3))
+        h_rot = rotation_from_matrix(d.site_xmat[self._handle_site])
+        t_rot = rotation_from_matrix(d.site_xmat[self._tcp_site])
         rel = h_rot.inv().apply(d.site_xpos[self._tcp_site] - d.site_xpos[self._handle_site])
         return rel, h_rot.inv() * t_rot
 
