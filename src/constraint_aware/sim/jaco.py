@@ -25,13 +25,13 @@ model's armature) with c B qdd (qdd of the previous substep); qfrc_bias compensa
 (arm, hand) and Coriolis terms; N^T = I - J^T Lambda J M_c^-1 is the dynamically consistent
 null-space projector carrying a joint-space posture spring (toward the grasp configuration) and
 a repulsion within `limit_margin` of a joint limit; the joints' dry friction (dm-control's
-model: 2 N m / 1 N m frictionloss) is fed forward in the direction of the commanded torque. The
-motors are torque sources (`motor` actuators); at the motors' limits the rotational part of the
-task torque yields first, then the task torque is scaled down as a whole (clipping joint by
-joint turns the force). The wrist sensor reads the wrench between flange and hand, so the arm's
-remaining friction and reflected inertia show as tracking error and lag, not as force: the
-tool settles with `tracking_time_constant` (measured once per grasp posture, ~0.3 s at the
-default 1000 N/m).
+model: 2 N m / 1 N m frictionloss) is fed forward in the direction of the joint's motion (of
+the commanded torque while it sticks). The motors are torque sources (`motor` actuators); at the
+motors' limits the rotational part of the task torque yields first, then the task torque is
+scaled down as a whole (clipping joint by joint turns the force). The wrist sensor reads the
+wrench between flange and hand, so the arm's remaining friction and reflected inertia show as
+tracking error and lag, not as force: the tool settles with `tracking_time_constant` (measured
+once per grasp posture, ~0.3 s at the default 1000 N/m).
 """
 
 from __future__ import annotations
@@ -151,11 +151,16 @@ class OscConfig:
     limit_margin: float = 0.15  # [rad] joint-limit repulsion starts this far from a limit
     limit_stiffness: float = 50.0  # [N m/rad] of the repulsion
     friction_compensation: float = 1.0  # [-] fraction of each joint's model frictionloss fed
-    # forward in the direction of the commanded torque (tanh over `friction_torque_scale`), as
-    # torque-controlled arms do: without it the joints' dry friction leaves a dead zone
-    # (measured in free space at 1000 N/m: 12 mm and 4 deg of a 20 mm / 6 deg step remain
-    # after 4 s; with it 1.8 mm and 1.5 deg)
+    # forward, as torque-controlled arms do: in the direction of the joint's motion while it
+    # moves (faster than `friction_velocity_scale`), of the commanded torque while it sticks
+    # (tanh over `friction_torque_scale`), blended in between. Without it the joints' dry
+    # friction leaves a dead zone (measured in free space at 1000 N/m: 12 mm and 4 deg of a
+    # 20 mm / 6 deg step remain after 4 s; with it 1.8 mm and 1.5 deg). By the commanded
+    # torque alone, a moving joint whose torque changes sign (a turning arm) lost it: the hand
+    # lagged its target with no force at the sensor (default policy, paper offsets: the
+    # plate's drag, the executor's arm-deflection guard stopped it; peak forces 12-21 N)
     friction_torque_scale: float = 0.2  # [N m]
+    friction_velocity_scale: float = 0.01  # [rad/s]
     motor_inertia_compensation: float = 0.9  # [-] c: the fraction of each joint's reflected
     # rotor inertia (the model's armature B, 4 / 2 kg m^2) that the joint torque loop hides:
     # tau_m = tau_d + c B qdd (qdd from the previous substep, as a joint torque sensor sees it
@@ -164,6 +169,13 @@ class OscConfig:
     # the armature dominates the tool's apparent mass (58-82 kg of Lambda's translational
     # diagonal at the drawer's grasp, 1.4-1.9 kg of it links and hand) and the tool settles
     # with a ~0.9 s time constant at 1000 N/m, nine control periods.
+    apparent_mass_cap: float = 30.0  # [kg, kg m^2] Lambda = (J M^-1 J^T + I / cap)^-1, the
+    # singularity-robust (damped) inverse: at the grasps Lambda's translational diagonal is
+    # 5-13 kg (c = 0.9), near the wrist singularity it grew past 1500 kg and the damping
+    # 2 zeta sqrt(k Lambda) froze the arm (default policy, door at +15 deg: q5 -> -pi at 42
+    # deg of door, the hand 4-5 cm behind its setpoint, force limit at step 72). Two values
+    # were tried: 100 kg opened the door with the shipped executor but stopped on the lag-
+    # aware guards (not_following, step 51); 30 kg passed both
     control_substeps: int = 2  # the OSC's torques are updated every this many 2 ms substeps:
     # 250 Hz (Kinova's torque interface takes 100 Hz-1 kHz); at 4 ms the fastest axis of the
     # stiffest variant (1e5 N/m) still has omega_n T < 1. Measured against 500 Hz (1): the five
@@ -351,7 +363,8 @@ class JacoSim(Embodiment):
         self._err = np.zeros(6)
         fric = self.osc.friction_compensation * m.dof_frictionloss[self._dof_slice]
         self._friction = fric if np.any(fric) else None
-        self._eps = 1e-6 * np.eye(6)  # keeps Lambda finite at a singular configuration
+        # Lambda = (J M^-1 J^T + I / cap)^-1: its eigenvalues stay below the cap (OscConfig)
+        self._eps = np.eye(6) / self.osc.apparent_mass_cap
         comp = self.osc.motor_inertia_compensation * m.dof_armature[self._dof_slice]
         self._rotor_comp = comp if np.any(comp) else None  # [kg m^2] c B per arm joint
         self._arm_diag = (self._arm_dof, self._arm_dof)  # the arm joints' diagonal of M
@@ -415,7 +428,10 @@ class JacoSim(Embodiment):
                     share = (room - np.sign(rotation) * translation) / np.abs(rotation)
                 tau = translation + min(1.0, float(np.min(share))) * rotation
         if self._friction is not None:
-            tau += self._friction * np.tanh(tau / self.osc.friction_torque_scale)
+            qvel = d.qvel[dofs]
+            moving = np.minimum(np.abs(qvel) / self.osc.friction_velocity_scale, 1.0)
+            sticking = np.tanh(tau / self.osc.friction_torque_scale)
+            tau += self._friction * (moving * np.sign(qvel) + (1.0 - moving) * sticking)
         # at a motor's limit, scale the whole task torque down rather than clip joints one by
         # one: clipping would turn the Cartesian force away from the commanded direction
         room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
