@@ -275,6 +275,18 @@ def test_lfo_json_is_a_path(tmp_path: Path) -> None:
     assert json.loads(out.stdout)["skill"]["constraint_type"] == "revolute"
 
 
+def test_lfo_prints_every_note_of_its_json(tmp_path: Path) -> None:
+    """The assumptions and disagreements are in the human-readable output, not only in --json."""
+    demo = Path(__file__).resolve().parents[1] / "examples" / "drawer_path.csv"
+    out = cap("lfo", str(demo), "--execute", "--json", str(tmp_path / "s.json"))
+    assert out.returncode == 0, out.stderr
+    data = json.loads((tmp_path / "s.json").read_text())
+    notes = data["skill"]["warnings"] + data["execution"]["notes"]
+    assert data["execution"]["notes"]  # a csv has no words: the object kind is assumed
+    printed = [line.removeprefix("note: ") for line in out.stdout.splitlines()]
+    assert [n for n in notes if n not in printed] == []
+
+
 def test_export_onnx_matches_the_numpy_policy(tmp_path: Path) -> None:
     pytest.importorskip("onnxruntime")
     out = cap("export-onnx", str(tmp_path / "p.onnx"), "--json", str(tmp_path / "e.json"))

@@ -536,6 +536,7 @@ def cmd_lfo(args: argparse.Namespace) -> int:
             record,
             f"initial-direction error vs the task {info['initial_direction_error_deg']:.1f} deg",
         )
+        _print_notes(info["notes"], out_console)  # what was assumed building the object
         if args.record:
             write_json(record.to_dict(), args.record)
     if args.json:
@@ -590,8 +591,14 @@ def _print_skill(skill: Any, out: Console) -> None:
     for key, value in rows:
         table.add_row(Text(key), Text(value))  # demo text is data, never markup
     out.print(table)
-    for w in skill.warnings:
-        out.print(Text.assemble(("note: ", "yellow"), w), soft_wrap=True)
+    _print_notes(skill.warnings, out)
+
+
+def _print_notes(notes: Sequence[str], out: Console) -> None:
+    """`note: ...` lines: the assumptions and disagreements (words vs geometry) that --json
+    holds as `skill.warnings` and `execution.notes`, in plain text."""
+    for note in notes:
+        out.print(Text.assemble(("note: ", "yellow"), note), soft_wrap=True)
 
 
 # --- cap bench --------------------------------------------------------------------------------
