@@ -637,6 +637,8 @@ def _bench_parser(p: argparse.ArgumentParser) -> None:
         help="run the sweeps on a Dask cluster (the 'cluster' extra): a scheduler address "
         "(tcp://host:8786), or 'local' for a local cluster of --workers processes",
     )
+    _add_policy(p)
+    _add_robot(p, "of the paper's experiments, the suite and the maps")
     _add_json(p, "results.json's content")
     p.set_defaults(func=cmd_bench)
 
@@ -645,6 +647,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     import time
 
     from constraint_aware.bench.run import RESULTS, replot, run_bench
+    from constraint_aware.sim.embodiment import DEFAULT_ROBOT
 
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
     if args.workers is not None and args.workers < 1:
@@ -653,6 +656,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         require_extra("distributed", "cluster", "--scheduler")
     start = time.perf_counter()
     if args.replot:
+        if args.policy is not None or args.robot != DEFAULT_ROBOT:
+            raise InvalidInputError("--replot redraws a finished bench: no --policy or --robot")
         report = replot(args.replot)
     else:
         report = run_bench(
@@ -661,6 +666,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
             workers=args.workers,
             force=args.force,
             scheduler=args.scheduler,
+            policy=args.policy,
+            robot=args.robot,
         )
     human(args).print(
         Text(

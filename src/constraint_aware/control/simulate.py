@@ -9,7 +9,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from constraint_aware.control.controllers import CONTROLLERS, DirectionController, make_controller
+from constraint_aware.control.controllers import (
+    CONTROLLERS,
+    DirectionController,
+    PolicyController,
+    make_controller,
+)
 from constraint_aware.control.executor import Executor, ExecutorConfig, orient_normal
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import Robot
@@ -216,6 +221,8 @@ def run(
         "command_from": cfg.command_from,
         "robot": spec.robot,
     }
+    if isinstance(ctrl, PolicyController):
+        label["policy"] = ctrl.policy.name  # which policy drove the run (the card's name)
     return executor.run(d0, label), sim
 
 
