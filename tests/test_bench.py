@@ -308,3 +308,27 @@ def test_bench_replot_takes_no_policy_or_robot(
         assert (
             "--replot redraws a finished bench: no --policy or --robot" in capsys.readouterr().err
         )
+
+
+def test_learning_section_of_a_policy_file_with_and_without_its_log(tmp_path: Path) -> None:
+    import shutil
+
+    from constraint_aware.bench import experiments as ex
+    from constraint_aware.bench.figures import fig_learning
+    from constraint_aware.policy import ConstraintAwarePolicy, shipped_log_path, shipped_policy_path
+
+    src = shipped_policy_path("paper")
+    (tmp_path / "p").mkdir()
+    for suffix in (".npz", ".json"):
+        shutil.copy(src.with_suffix(suffix), tmp_path / "p" / f"mine{suffix}")
+    path = tmp_path / "p" / "mine.npz"
+    out = tmp_path / "out"
+    out.mkdir()
+    le = ex.learning(out, ConstraintAwarePolicy.load(path), path)
+    assert (le["has_log"], le["log_points"], le["policy"]) == (False, 0, "paper")
+    results = {"learning": le}
+    assert (out / fig_learning(out, results)).read_bytes()[:8] == PNG  # an empty curve
+    shutil.copy(shipped_log_path("paper"), tmp_path / "p" / "training_log.csv")
+    le = ex.learning(out, ConstraintAwarePolicy.load(path), path)
+    assert le["has_log"] and le["log_points"] > 0
+    assert (out / "training_log.csv").read_text() == shipped_log_path("paper").read_text()
