@@ -1,9 +1,9 @@
 """Scene assembly with `mujoco.MjSpec`: world options, floor, light, camera, the object.
 
 An embodiment composes its arm and hand into this spec (`attach`), so a second embodiment adds
-one module and no template. The object's bodies come from `sim/objects.py`'s MJCF, parsed into
-a spec and attached whole under the name prefix `OBJECT_PREFIX` (MuJoCo needs a non-empty
-prefix to keep the composed model savable).
+one module and no template. The object is built as its own spec by `sim/objects.py`'s
+per-kind builders and attached whole under the name prefix `OBJECT_PREFIX` (MuJoCo needs a
+non-empty prefix to keep the composed model savable).
 """
 
 from __future__ import annotations
@@ -13,7 +13,8 @@ from collections.abc import Callable
 import mujoco
 import numpy as np
 
-from constraint_aware.sim.objects import OBJECT_BODY, object_mjcf
+from constraint_aware.sim import objects
+from constraint_aware.sim.objects import OBJECT_BODY
 from constraint_aware.sim.robot_adapter import TIMESTEP
 from constraint_aware.sim.tasks import TaskConfig
 
@@ -74,9 +75,7 @@ def scene_spec(
 
 def object_spec(task: TaskConfig) -> mujoco.MjSpec:
     """The task's object (moving body, joint, handle, scenery) as its own spec."""
-    body = object_mjcf(task.object)
-    xml = f'<mujoco><compiler angle="radian"/><worldbody>{body}</worldbody></mujoco>'
-    return mujoco.MjSpec.from_string(xml)
+    return objects.object_spec(task.object)
 
 
 def attach_object(spec: mujoco.MjSpec, task: TaskConfig) -> None:
