@@ -161,6 +161,16 @@ def object_frame(cfg: ObjectConfig) -> np.ndarray:
 # Builders add elements in the order the compiled model lists them: the scenery (world body),
 # then the moving body's joint, main part, handle site and handle geoms.
 
+#: Scenes are built on a grid: positions [m], directions and colours to 1e-6, orientations
+#: (quaternions) to 1e-8, the resolution the MJCF templates these builders replaced printed
+#: with. On the grid a scene is the same to the bit however its numbers were computed (frame
+#: products or sums), and that matters: the hand's squeeze grasps are sensitive to the last
+#: bit (measured: moving a finger plate by 2e-18 m changes a sideways pole's wrist force by
+#: 0.02 N within 27 steps; a door with a squeezed pole chatters, and 1e-10 m shifts its
+#: phase), so off the grid every refactoring would change stored runs.
+GRID_DECIMALS = 6
+QUAT_DECIMALS = 8
+
 #: Colours [rgba] of the parts that do not take the object's own colour.
 METAL_RGBA = (0.75, 0.75, 0.78, 1.0)  # bars, poles, posts
 PLATE_RGBA = (0.8, 0.8, 0.85, 1.0)
@@ -201,12 +211,12 @@ def add_object(world: MjsBody, cfg: ObjectConfig) -> MjsBody:
     else:
         body_pos = np.asarray(cfg.position, dtype=float)  # ... the hinge point
         local_handle = handle - body_pos
-    body = world.add_body(name=OBJECT_BODY, pos=body_pos, gravcomp=cfg.counterbalance)
+    body = world.add_body(name=OBJECT_BODY, pos=on_grid(body_pos), gravcomp=cfg.counterbalance)
     _add_joint(body, cfg)
     MOVING_PART_BUILDERS[_moving_part_kind(cfg)](body, cfg, frame, local_handle)
     body.add_site(
         name=HANDLE_SITE,
-        pos=local_handle,
+        pos=on_grid(local_handle),
         size=[HANDLE_SITE_SIZE, 0.005, 0.005],
         rgba=[0.0, 1.0, 0.0, 1.0],
     )
@@ -228,7 +238,7 @@ def _add_joint(body: MjsBody, cfg: ObjectConfig) -> None:
     body.add_joint(
         name=OBJECT_JOINT,
         type=kind,
-        axis=list(cfg.axis),
+        axis=on_grid(cfg.axis),
         pos=[0.0, 0.0, 0.0],  # a hinge passes through the body origin, `position`
         damping=cfg.damping,
         frictionloss=cfg.frictionloss,
@@ -254,16 +264,16 @@ class HandleFrame:
     origin: np.ndarray
     axes: np.ndarray
 
-    def point(self, x: float, y: float, z: float) -> np.ndarray:
-        """(3,) [m] body coordinates of the handle-frame point (x, y, z)."""
-        return self.origin + self.axes @ np.array([x, y, z])
+    def point(self, x: float, y: float, z: float) -> list[float]:
+        """(3,) [m] body coordinates of the handle-frame point (x, y, z), on the grid."""
+        return on_grid(self.origin + self.axes @ np.array([x, y, z]))
 
     def segment(self, a: tuple[float, float, float], b: tuple[float, float, float]) -> list[float]:
         """A `fromto` (6,) [m] in body coordinates from two handle-frame points."""
         return [*self.point(*a), *self.point(*b)]
 
     @property
-    def quat(self) -> np.ndarray:
+    def quat(self) -> list[float]:
         return _quat(self.axes)
 
 
@@ -379,9 +389,9 @@ def _drawer_front(body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: n
             name="object_box",
             type=mujoco.mjtGeom.mjGEOM_BOX,
             size=list(cfg.panel_half),
-            pos=handle - (cfg.standoff + px) * frame[:, 0],
+            pos=on_grid(handle - (cfg.standoff + px) * frame[:, 0]),
             quat=_quat(frame),
-            rgba=list(cfg.rgba),
+            rgba=on_grid(cfg.rgba),
             mass=cfg.mass,
         )
     )
@@ -403,9 +413,9 @@ def _door_panel(body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: np.
             name="object_panel",
             type=mujoco.mjtGeom.mjGEOM_BOX,
             size=[t, length / 2, cfg.panel_half[2]],
-            pos=centre,
+            pos=on_grid(centre),
             quat=_quat(panel_frame),
-            rgba=list(cfg.rgba),
+            rgba=on_grid(cfg.rgba),
             mass=cfg.mass,
         )
     )
@@ -422,8 +432,8 @@ def _crank_arm(body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: np.n
             name="object_arm",
             type=mujoco.mjtGeom.mjGEOM_CAPSULE,
             size=[0.008, 0.0, 0.0],
-            fromto=[*hub, *below],
-            rgba=list(cfg.rgba),
+            fromto=on_grid([*hub, *below]),
+            rgba=on_grid(cfg.rgba),
             mass=cfg.mass,
         )
     )
@@ -432,7 +442,7 @@ def _crank_arm(body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: np.n
             name="object_hub",
             type=mujoco.mjtGeom.mjGEOM_CYLINDER,
             size=[0.02, 0.01, 0.0],
-            pos=hub,
+            pos=on_grid(hub),
             rgba=list(HUB_RGBA),
             mass=0.01,
         )
@@ -448,8 +458,8 @@ def _pole_carriage(body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: 
             name="object_carriage",
             type=mujoco.mjtGeom.mjGEOM_BOX,
             size=[0.04, 0.04, 0.02],
-            pos=handle - 0.2 * frame[:, 2],
-            rgba=list(cfg.rgba),
+            pos=on_grid(handle - 0.2 * frame[:, 2]),
+            rgba=on_grid(cfg.rgba),
             mass=cfg.mass,
         )
     )
@@ -467,8 +477,8 @@ def _plate_carriage(
             name="object_carriage",
             type=mujoco.mjtGeom.mjGEOM_BOX,
             size=[0.03, 0.03, 0.005],
-            pos=handle - (2 * cfg.handle_half[2] + 0.005) * frame[:, 2],
-            rgba=list(cfg.rgba),
+            pos=on_grid(handle - (2 * cfg.handle_half[2] + 0.005) * frame[:, 2]),
+            rgba=on_grid(cfg.rgba),
             mass=cfg.mass,
         )
     )
@@ -505,7 +515,7 @@ def _cabinet(world: MjsBody, cfg: ObjectConfig, frame: np.ndarray) -> None:
     geom = _scenery_geom(world, "scene_cabinet")
     geom.type = mujoco.mjtGeom.mjGEOM_BOX
     geom.size = [px, py + 0.03, pz + 0.03]
-    geom.pos = cfg.handle_position - (cfg.standoff + px + 0.02) * frame[:, 0]
+    geom.pos = on_grid(cfg.handle_position - (cfg.standoff + px + 0.02) * frame[:, 0])
     geom.quat = _quat(frame)
 
 
@@ -519,7 +529,7 @@ def _rail(world: MjsBody, cfg: ObjectConfig, frame: np.ndarray) -> None:
     geom = _scenery_geom(world, "scene_rail")
     geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
     geom.size = [0.01, 0.0, 0.0]
-    geom.fromto = [*(rail - 0.1 * out), *(rail + 0.4 * out)]
+    geom.fromto = on_grid([*(rail - 0.1 * out), *(rail + 0.4 * out)])
 
 
 def _hinge_post(world: MjsBody, cfg: ObjectConfig, frame: np.ndarray) -> None:
@@ -530,7 +540,7 @@ def _hinge_post(world: MjsBody, cfg: ObjectConfig, frame: np.ndarray) -> None:
     geom = _scenery_geom(world, "scene_hinge")
     geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
     geom.size = [0.012, 0.0, 0.0]
-    geom.fromto = [*(p - 0.3 * up), *(p + 0.3 * up)]
+    geom.fromto = on_grid([*(p - 0.3 * up), *(p + 0.3 * up)])
 
 
 SCENERY_BUILDERS: dict[str, Callable[[MjsBody, ObjectConfig, np.ndarray], None]] = {
@@ -546,11 +556,16 @@ def _scenery_kind(cfg: ObjectConfig) -> str:
     return "cabinet" if cfg.handle == "bar" else "rail"
 
 
-def _quat(frame: np.ndarray) -> np.ndarray:
-    """(4,) unit quaternion (w, x, y, z) of a (3, 3) rotation whose columns are the rotated
-    frame's axes."""
+def _quat(frame: np.ndarray) -> list[float]:
+    """(4,) quaternion (w, x, y, z) of a (3, 3) rotation whose columns are the rotated frame's
+    axes, on the orientation grid (MuJoCo normalizes it)."""
     import mujoco
 
     q = np.zeros(4)
     mujoco.mju_mat2Quat(q, np.ascontiguousarray(frame, dtype=float).reshape(9))
-    return q
+    return [round(float(c), QUAT_DECIMALS) for c in q]
+
+
+def on_grid(v: np.ndarray | tuple[float, ...] | list[float]) -> list[float]:
+    """The numbers of a position [m], direction or colour on the scene's grid (`GRID_DECIMALS`)."""
+    return [round(float(c), GRID_DECIMALS) for c in v]
