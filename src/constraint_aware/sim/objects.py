@@ -179,6 +179,13 @@ STEM_RGBA = (0.6, 0.6, 0.6, 1.0)
 HUB_RGBA = (0.3, 0.3, 0.3, 1.0)
 SCENERY_RGBA = (0.8, 0.8, 0.78, 1.0)
 VISUAL_GROUP = 1  # geoms that only show: no contact (contype = conaffinity = 0)
+#: Contact bit that robot-arm geoms carry and the hook hand's do not: dm-control's convention
+#: (the Jaco's geoms: contype 3 = bits 1 | 2, conaffinity 2; the hook hand's: contype =
+#: conaffinity = 1). An object built `solid_for_arms` gives its visual parts this
+#: conaffinity (contype 0): an arm's links and fingers then touch the door panel, drawer box,
+#: crank arm and the furniture, while the hook hand's contacts (and runs) stay as they are and
+#: the object's parts never touch each other or the handle.
+ARM_CONTACT_BIT = 2
 POST_RADIUS = 0.005  # [m] the bar's standoff posts
 KNOB_STEM = 0.06  # [m] knob: the stem from the knob down to the crank arm
 PANEL_HALF_THICKNESS = 0.015  # [m] door / lid panel
@@ -186,16 +193,24 @@ PANEL_OVERHANG = 0.1  # [m] door / lid panel past the handle, away from the hing
 HANDLE_SITE_SIZE = 0.004  # [m]
 
 
-def object_spec(cfg: ObjectConfig) -> MjSpec:
+def object_spec(cfg: ObjectConfig, solid_for_arms: bool = False) -> MjSpec:
     """The object as its own spec, ready to attach to a scene (sim/scene.py): static scenery in
     the world body and the moving body `OBJECT_BODY` with its joint, main part, handle site and
-    handle, everything in world coordinates (the world origin is the scene's)."""
+    handle, everything in world coordinates (the world origin is the scene's).
+
+    solid_for_arms: the visual parts (main part, scenery) collide with geoms carrying
+    `ARM_CONTACT_BIT` in their contype (a real arm's), still not with the hook hand's.
+    """
     import mujoco  # here, not at import: sim.tasks (and so the package) must stay light
 
     spec = mujoco.MjSpec()
     spec.modelname = "object"
     spec.compiler.degree = False
     add_object(spec.worldbody, cfg)
+    if solid_for_arms:
+        for geom in spec.geoms:
+            if geom.group == VISUAL_GROUP and geom.contype == 0 and geom.conaffinity == 0:
+                geom.conaffinity = ARM_CONTACT_BIT
     return spec
 
 
