@@ -178,7 +178,7 @@ KNOB_RGBA = (0.8, 0.3, 0.3, 1.0)
 STEM_RGBA = (0.6, 0.6, 0.6, 1.0)
 HUB_RGBA = (0.3, 0.3, 0.3, 1.0)
 SCENERY_RGBA = (0.8, 0.8, 0.78, 1.0)
-VISUAL_GROUP = 1  # geoms that only show: no contact (contype = conaffinity = 0)
+VISUAL_GROUP = 1  # the visual parts (main part, furniture): no contact with a hand
 #: Contact bit that robot-arm geoms carry and the hook hand's do not: dm-control's convention
 #: (the Jaco's geoms: contype 3 = bits 1 | 2, conaffinity 2; the hook hand's: contype =
 #: conaffinity = 1). An object built `solid_for_arms` gives its visual parts this
