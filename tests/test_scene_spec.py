@@ -222,3 +222,33 @@ if __name__ == "__main__" and sys.argv[1:] == ["--write"]:
     SNAPSHOT.parent.mkdir(exist_ok=True)
     SNAPSHOT.write_text(json.dumps(snapshot(), separators=(",", ":")) + "\n")
     print(f"wrote {SNAPSHOT} ({SNAPSHOT.stat().st_size} bytes)")
+
+
+@pytest.mark.parametrize("name", list(TASKS))
+def test_the_object_is_the_same_in_both_embodiments(name: str) -> None:
+    from constraint_aware.sim.jaco import JacoSim
+    from constraint_aware.sim.scene import OBJECT_PREFIX
+
+    hook = build_spec(task_config(name)).compile()
+    arm = JacoSim(task_config(name)).model
+
+    def of_object(model: mujoco.MjModel) -> dict[str, list[float]]:
+        found: dict[str, list[float]] = {}
+        for g in range(model.ngeom):
+            geom = model.geom(g)
+            if geom.name.startswith(OBJECT_PREFIX):
+                found[geom.name] = [*geom.size, *geom.pos, *geom.quat, *geom.friction,
+                                    *geom.contype, *geom.conaffinity]  # fmt: skip
+        body = model.body(OBJECT_PREFIX + "object")
+        joint = model.joint(OBJECT_PREFIX + "object_joint")
+        found["body"] = [
+            *body.pos,
+            *body.mass,
+            *body.inertia,
+            *body.ipos,
+            model.body_gravcomp[body.id],
+        ]
+        found["joint"] = [*joint.axis, *joint.range, *joint.damping, *joint.frictionloss]
+        return found
+
+    assert of_object(arm) == of_object(hook)
