@@ -88,9 +88,9 @@ def test_solid_parts_touch_arm_geoms_only(solid: bool) -> None:
 @pytest.mark.parametrize("name", ["door-opening", "drawer-opening"])
 @pytest.mark.xfail(
     strict=True,
-    reason="the Jaco's curled fingers reach past the bar objects' 40 mm standoff (26.5 mm "
-    "clear behind the bar): at the grasp its fingertips are 21.6 mm inside the door panel / "
-    "drawer box (and its link 2, based on the hinge side, 12.6 mm inside the door panel); "
+    reason="the Jaco's curled fingertips reach 61.6 mm behind the bar's centre and the door "
+    "panel's / drawer box's front is 40 mm behind it (the bar objects' standoff): at the grasp "
+    "they are 21.6 mm inside (and on the door its link 2, based on the hinge side, 12.6 mm); "
     "remove this mark when the Jaco's grasp stays out",
 )
 def test_the_jaco_grasp_stays_out_of_the_visual_parts(name: str) -> None:
