@@ -316,12 +316,13 @@ def test_tracking_time_constant_matches_a_measured_step_response(robot: str) -> 
     for axis in np.eye(3):
         sim.reset()
         measured.append(_measured_rise_time(sim, axis))
-    # the slowest translational axis, within 2 substeps (hook hand: the linear model is exact)
-    # or 10 % (Jaco: measured at build time from its grasp posture, here from the settled grasp)
+    # the mean over the translational axes, within 2 substeps (hook hand: the linear model is
+    # exact) or 10 % (Jaco: measured at build time from its grasp posture, here from the
+    # settled grasp)
     tolerance = 0.004 if robot.startswith("hook-hand") else 0.1 * tau
-    assert max(measured) == pytest.approx(tau, abs=tolerance)
+    assert float(np.mean(measured)) == pytest.approx(tau, abs=tolerance)
     # the linear model (gains and apparent masses) is a lower bound: dry friction only slows
-    assert np.max(sim.axis_time_constants()[:3]) <= tau + 0.004
+    assert np.mean(sim.axis_time_constants()[:3]) <= tau + 0.004
 
 
 def test_tracking_time_constant_is_fixed_per_episode_and_follows_the_gains() -> None:

@@ -468,12 +468,13 @@ class JacoSim(Embodiment):
         return np.asarray(self._k, dtype=float), damping, lam
 
     def _free_space_time_constant(self) -> float:
-        """[s] the tool point's tracking time constant, measured: the slowest of three
+        """[s] the tool point's tracking time constant, measured: the mean over three
         `TRACKING_STEP` setpoint steps (world x, y, z) from rest at the grasp posture, with
-        contacts off (free space), to 63.2 % of the step. Measured rather than computed
-        because the joints' dry friction (partly fed forward) slows the linear response
-        (`axis_time_constants`) by up to ~40 % at 1000 N/m. Runs on its own MjData, so the
-        episode's state is untouched; cached per base, posture and controller gains."""
+        contacts off (free space), of the time to 63.2 % of the step. Measured rather than
+        computed because the joints' dry friction, fed forward only in part at rest, slows the
+        linear response (`axis_time_constants`) at low stiffness (500 N/m: ~1 s). Runs on its
+        own MjData, so the episode's state is untouched; cached per base, posture and
+        controller gains."""
         key = (*np.round(self.base, 9), *np.round(self._posture, 9), *vars(self.osc).values())
         cached = _TAU_CACHE.get(key)
         if cached is not None:
@@ -482,7 +483,7 @@ class JacoSim(Embodiment):
         episode = (self.data, self.commanded_pose(), self._sp_vel, self._phase)
         flags = m.opt.disableflags
         m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-        slowest = 0.0
+        rises = []
         try:
             for axis in np.eye(3):
                 self.data = scratch = mujoco.MjData(m)
@@ -501,13 +502,14 @@ class JacoSim(Embodiment):
                     if moved >= (1.0 - math.exp(-1.0)) * TRACKING_STEP:
                         rise = i * TIMESTEP
                         break
-                slowest = max(slowest, rise)
+                rises.append(rise)
         finally:
             m.opt.disableflags = flags
             self.data, setpoint, self._sp_vel, self._phase = episode
             self._apply_setpoint(setpoint)
-        _TAU_CACHE[key] = slowest
-        return slowest
+        tau = float(np.mean(rises))
+        _TAU_CACHE[key] = tau
+        return tau
 
     @staticmethod
     def _wrapped(a: FloatArray) -> FloatArray:

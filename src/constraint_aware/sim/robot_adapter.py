@@ -175,18 +175,23 @@ class SimulatedRobot(ABC):
         return np.array([step_rise_time(*axis) for axis in axes])
 
     def _free_space_time_constant(self) -> float:
-        """[s] the slowest translational axis's time constant at the current configuration.
-        This default is exact for linear servos (the hook hand's); an arm with dry friction
-        or coupled axes measures a step response instead (sim/jaco.py)."""
-        return float(np.max(self.axis_time_constants()[:3]))
+        """[s] the mean of the three translational axes' time constants at the current
+        configuration. This default is exact for linear servos (the hook hand's); an arm with
+        dry friction or coupled axes measures step responses instead (sim/jaco.py)."""
+        return float(np.mean(self.axis_time_constants()[:3]))
 
     @property
     def tracking_time_constant(self) -> float:
         """[s] the time constant with which the tool point settles onto a commanded position
-        in free space (the Robot protocol's optional member): the 63.2 % rise time of the
-        slowest translational axis at the grasp configuration, from the robot's own gains and
-        masses (fixed when the embodiment is reset; before that, at the current state).
-        Rotations are not included: per-axis values are in `axis_time_constants`."""
+        in free space (the Robot protocol's optional member): the 63.2 % rise time of a step,
+        averaged over the three translational axes (world x, y, z), at the grasp configuration,
+        from the robot's own gains and masses (fixed when the embodiment is reset; before
+        that, at the current state). One number for an anisotropic arm: the mean, because the
+        executor credits tau x the hand's velocity to the lag along whatever direction it
+        moves; the slowest axis over-credited it along faster ones (the Jaco's plate: 0.19 s
+        reported, 0.12 s along the motion; the lag-aware self-check then saw F against the
+        credited deflection). Rotations are not included: per-axis values of the linear model
+        are in `axis_time_constants`."""
         tau = getattr(self, "_tracking_time_constant", None)
         if tau is None:
             tau = self._free_space_time_constant()
