@@ -41,6 +41,18 @@ class Robot(Protocol):
     - `translational_stiffness: float` [N/m], the arm's Cartesian impedance stiffness along the
       motion; with the step length it gives the step force k*delta a policy may use, the
       force predicted for the next step and the bound on the target's lead;
+    - `tracking_time_constant: float` [s], tau: how the tool lags a commanded pose in free
+      space, as a first-order response (an impedance with damping c: tau = c / k). A tool
+      following a setpoint that moves at velocity v trails it by tau v, and settles onto a
+      step with time constant tau. The executor's guards that compare the wrench with the
+      arm's deflection (measured - commanded pose; the `not_following` arm-force check and
+      the `sensor_convention` self-check) credit tau x the hand's measured velocity to the lag
+      instead of to a force. Without it they assume a quasi-static arm (settled within one
+      control period), which holds for the hook hand at 2000 N/m (tau 0.076 s at 0.1 s) but
+      not at 500 N/m (0.15 s). Report it from the controller's gains and the moving mass, or
+      measure it once; an over-report by more than 2x, or an under-report by half, makes the
+      self-check stop correct runs (safe stops; measured in tests/test_lag_guards.py and
+      benchmarks/guard_lag.py). Ignored with a note unless finite and > 0;
     - `hold() -> None`: stop moving and hold the current measured pose (called on every stop
       and on any exception).
     """
