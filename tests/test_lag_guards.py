@@ -188,3 +188,17 @@ def test_a_dead_sensor_never_lets_the_true_force_pass_the_limit(report_tau: bool
     assert rec.outcome in ("not_following", "force_limit"), rec.reason
     assert robot.peak_true_force <= 1.1 * 60.0
     assert robot.holds == 1
+
+
+def test_an_over_reported_lag_is_not_credited_beyond_the_lag_there() -> None:
+    """A robot reporting 3x its lag (a settle time instead of its lag behind a moving
+    setpoint): the arm-force check credits at most the lag actually there, so the correct arm
+    is not stopped `not_following`, while a frozen arm (no motion, no credit) and a dead
+    sensor are still stopped."""
+    rec = run(LaggingGuide(tau=0.2, report_tau=0.6))
+    assert rec.outcome == "success", rec.reason
+    frozen = run(LaggingGuide(tau=0.2, report_tau=0.6, frozen_after=HOLD + 3))
+    assert frozen.outcome == "not_following" and frozen.n_steps <= 6, frozen.reason
+    dead = LaggingGuide(tau=0.2, report_tau=0.6, sensor="dead")
+    rec = run(dead, offset=40.0, policy=False)
+    assert rec.outcome in ("not_following", "force_limit") and dead.peak_true_force <= 66.0

@@ -691,6 +691,22 @@ class Executor:
         st.last_position = position.copy()
         st.periods_since_position = 1
 
+    def _lagged_deflection(self, st: _Run, pose: Pose) -> FloatArray:
+        """[m] (3,) `_deflection` for the arm-force check: the lag credit tau v is limited to
+        the lag actually there (the deflection against the hand's motion), so an over-reported
+        tau cannot add deflection along the motion and read as a force (a Jaco reporting its
+        0.48 s settle time instead of its 0.14 s lag was stopped `not_following` after 2
+        moves). A frozen arm has no velocity and gets no credit."""
+        assert st.deflection0 is not None
+        deflection = np.asarray(pose.position, dtype=float) - st.target.position - st.deflection0
+        tau = st.tracking_time_constant
+        speed = float(np.linalg.norm(st.velocity))
+        if tau is None or speed < 1e-9:
+            return deflection
+        motion = st.velocity / speed
+        behind = max(0.0, -float(deflection @ motion))  # [m] how far the hand trails
+        return deflection + min(tau * speed, behind) * motion
+
     def _deflection(self, st: _Run, pose: Pose, lag_share: float = 1.0) -> FloatArray:
         """[m] (3,) the arm's deflection the wrench should explain: measured - commanded (less
         its value when moving began: the grasp's own preload), plus, when the robot reports
@@ -717,7 +733,7 @@ class Executor:
         k = st.stiffness
         steps = ARM_FORCE_LAG_STEPS if st.tracking_time_constant is None else ARM_FORCE_MODEL_STEPS
         allowance = steps * k * self.config.step_length
-        return max(0.0, k * float(np.linalg.norm(self._deflection(st, pose))) - allowance)
+        return max(0.0, k * float(np.linalg.norm(self._lagged_deflection(st, pose))) - allowance)
 
     def _note_force(self, st: _Run, force: FloatArray, length: float) -> None:
         """Remember the force and the move for the force-rate estimate."""

@@ -55,9 +55,9 @@ class Robot(Protocol):
       the Jaco arm's) it is shorter than the settle time onto a step -- measured on the Jaco,
       0.11-0.16 s against c / k = 0.36-0.69 s -- and the former is the one to report.
       Reported 0.5x-1.5x of c / k, the hook hand's runs at 500-8000 N/m still pass but for
-      2 of 60 (benchmarks/guard_lag.py); an over-report credits lag that is not there and
-      stops correct runs (safe stops), and cannot hide a flipped or rotated sensor up to 2x
-      (tests/test_lag_guards.py). Ignored with a note unless finite and > 0;
+      2 of 60 (benchmarks/guard_lag.py: the self-check); the arm-force check credits no more
+      lag than is there, and an over-report up to 2x does not hide a flipped or rotated
+      sensor (tests/test_lag_guards.py). Ignored with a note unless finite and > 0;
     - `hold() -> None`: stop moving and hold the current measured pose (called on every stop
       and on any exception).
     """
