@@ -74,6 +74,15 @@ REANCHOR_LIMIT_STEPS = 2.0
 #: over this many steps, times 1.5) predicts the next step's force.
 FORCE_RATE_WINDOW = 3
 FORCE_RATE_SAFETY = 1.5
+#: (With a reported stiffness the prediction assumes the whole move blocked: |F| + k l. On a
+#: stiff arm that shortens steps, and it is right to: at 20,000 N/m a blocked 1 cm step is
+#: 200 N, 3.3x the 60 N limit. Measured on the hook hand, default policy, paper offsets
+#: (benchmarks/guard_lag.py): with the prediction, peak |F| 6-15 N, steps of ~2-3 mm, and the
+#: runs time out at the tasks' step budgets (drawer 17 of 25 cm in 60 steps) or, for plate
+#: and pole, the second step is refused (1.95 mm allowed < min_step_fraction); without it,
+#: pole 81.6 N and plate 61 N on the first move (force_limit stops past the limit), drawer
+#: 44-47 N and handle 44.5 N peaks on their way to success; with 4x the step budget and the
+#: prediction, drawer and handle succeed at 6-15 N.)
 #: The hand lags its moving target: at the end of a period the simulated arm (damping ratio 2)
 #: reads up to ~0.75 step lengths of deflection as force it does not feel (k |deflection| -
 #: |F| is at most 14.9 N for 20 N step forces over the five tasks, and at most 7.3 N above
