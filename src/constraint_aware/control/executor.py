@@ -104,8 +104,9 @@ ARM_FORCE_DISAGREEMENT_STEPS = 0.5
 SELF_CHECK_MIN_FORCE = 2.0
 SELF_CHECK_MIN_DEFLECTION = 0.002
 SELF_CHECK_MIN_SAMPLES = 3
-#: On a stiff arm a smaller deflection counts (the deflection of SELF_CHECK_MIN_FORCE), but
-#: never one below this [m] (pose noise of a real arm: ~0.1 mm).
+#: On a stiff arm a smaller deflection counts (the deflection of SELF_CHECK_MIN_FORCE: 0.25 mm
+#: at 8000 N/m, where the 2 mm rule left the handle's moves without samples), but never one
+#: below this [m], a floor against pose noise.
 SELF_CHECK_DEFLECTION_FLOOR = 0.0002
 #: The median F.d/|F| above which the object "pushes the hand along its move". In the five
 #: simulated tasks at 2000 N/m, normal runs give -0.88 to -0.14 (friction and damping resist
