@@ -201,7 +201,7 @@ def test_paper_tasks_with_the_policy_on_the_arm(
 ) -> None:
     spec = RunSpec(task, robot="jaco", controller="policy", offset_deg=PAPER_OFFSETS[task])
     # without the executor's two guards that assume a quasi-static arm (F = k x deflection):
-    # the start-of-run self-check and the arm-deflection stop (see the xfail test below)
+    # the start-of-run self-check and the arm-deflection stop (with them: the test below)
     monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
     policy = ConstraintAwarePolicy.load(policy_name)
     record, sim = run(spec, policy=policy, executor_overrides={"self_check_steps": 0})
@@ -209,14 +209,26 @@ def test_paper_tasks_with_the_policy_on_the_arm(
     assert sim.translational_stiffness == 1000.0
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the executor's quasi-static guards read the lagging arm's deflection as a rotated "
-    "sensor frame or a stalled arm (README, Second embodiment); remove this mark when they "
-    "no longer do",
+@pytest.mark.parametrize(
+    "task",
+    [
+        *(t for t in PAPER_OFFSETS if t != "door-opening"),
+        pytest.param(
+            "door-opening",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="with every guard the door at +15 deg stops not_following at step 52 "
+                "(50 deg of 60): along the door's arc the arm's apparent mass grows (6.6 -> 14 "
+                "kg along x), its lag with it (~2.3 cm), beyond the lag the reported "
+                "tracking_time_constant (one number, measured at the grasp) credits; remove "
+                "this mark when it succeeds",
+            ),
+        ),
+    ],
 )
-def test_drawer_with_the_policy_on_the_arm_and_every_executor_guard() -> None:
-    record, _ = run(RunSpec("drawer-opening", robot="jaco", controller="policy", offset_deg=30))
+def test_paper_tasks_with_the_policy_on_the_arm_and_every_executor_guard(task: str) -> None:
+    spec = RunSpec(task, robot="jaco", controller="policy", offset_deg=PAPER_OFFSETS[task])
+    record, _ = run(spec)
     assert record.outcome == "success", record.reason
 
 
