@@ -6,10 +6,10 @@
 Per robot, guard setting, task and controller: successes / runs, the outcomes, the median peak
 |F| and mean |F| [N] (bench/sweep.py's suite: friction, mass and damping drawn per seed, offsets
 uniform in +-30 deg prismatic / +-15 deg revolute; the same draws for every controller). "all
-guards" is the executor as shipped; "quasi-static guards off" disables its start-of-run
-self-check and its arm-deflection stop, which assume F = k x deflection within one control
-period and so stop a lagging arm (the Jaco's `tracking_time_constant` is ~0.3 s) until the
-executor allows for the lag. One process, in order.
+guards" is the executor as shipped (its arm-deflection guards credit the robot's reported
+`tracking_time_constant` to the lag); "quasi-static guards off" disables its start-of-run
+self-check and its arm-deflection stop, to separate the controllers and the arm from those
+guards. One process, in order.
 """
 
 from __future__ import annotations
