@@ -5,9 +5,10 @@
 Runs (bench/forces.py): the policy's one-step turn against small forces; a per-run diagnosis
 of door and drawer (default, classical, steady; the paper's offset and suite seeds 0-4:
 transient vs steady force, the steady lag and zig-zag against the path's turn delta/r); the
-20-seed randomized suite and the paper's offsets for every variant; the resistance map for
-default, classical and steady. Writes forces.json (typed results) and forces.md (tables
-rendered from the JSON). One process.
+20-seed randomized suite and the paper's offsets for every variant, the paper's offsets over
+10 sensor-noise seeds for default, classical and steady; the resistance map for default,
+classical, steady and steady without the known rate. Writes forces.json (typed results) and
+forces.md (tables rendered from the JSON). One process.
 """
 
 from __future__ import annotations
@@ -105,6 +106,12 @@ def render(data: dict[str, Any]) -> list[str]:
     lines += ["", "## The paper's offsets", "", *table_lines(cells("paper_offsets"), variants)]
     lines += [
         "",
+        "## The paper's offsets over sensor-noise seeds (same object, same offset)",
+        "",
+        *table_lines(cells("paper_offsets_noise_seeds"), MAIN_VARIANTS),
+    ]
+    lines += [
+        "",
         "## Resistance map (paper offsets)",
         "",
         *table_lines(cells("resistance"), MAP_VARIANTS),
@@ -124,6 +131,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20, help="suite seeds per task")
     parser.add_argument("--map-seeds", type=int, default=2, help="seeds per resistance cell")
     parser.add_argument("--diagnosis-seeds", type=int, default=5)
+    parser.add_argument("--noise-seeds", type=int, default=10, help="paper offsets, noise seeds")
     parser.add_argument("--out", default=str(Path(__file__).parent / "results"))
     args = parser.parse_args()
     start = time.perf_counter()
@@ -141,6 +149,12 @@ def main() -> None:
     diagnosis_runs = _runs(diag_conds, DIAGNOSED, policy)
     suite_runs = _runs(suite_conditions(args.seeds), tuple(VARIANTS), policy)
     paper_runs = _runs([(c, 0) for c in paper_offset_conditions()], tuple(VARIANTS), policy)
+    # the paper's offsets again over sensor-noise seeds: how much one run's noise moves a cell
+    noise_runs = _runs(
+        [(c, s) for c in paper_offset_conditions() for s in range(args.noise_seeds)],
+        MAIN_VARIANTS,
+        policy,
+    )
     map_runs = _runs(
         [(c, s) for c in resistance_map() for s in range(args.map_seeds)], MAP_VARIANTS, policy
     )
@@ -156,6 +170,9 @@ def main() -> None:
         "suite": [dataclasses.asdict(c) for c in summarize(suite_runs)],
         "paper_offsets": [
             dataclasses.asdict(c) for c in summarize(paper_runs, aggregate_levels=True)
+        ],
+        "paper_offsets_noise_seeds": [
+            dataclasses.asdict(c) for c in summarize(noise_runs, aggregate_levels=True)
         ],
         "resistance": [dataclasses.asdict(c) for c in summarize(map_runs)],
     }
