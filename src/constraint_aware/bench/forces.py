@@ -7,9 +7,11 @@ step-to-step turn is the zig-zag); `summarize` groups them by their own keys int
 `VariantSummary`s. `benchmarks/forces.py` runs the study and writes JSON; the report reads it.
 
 Variants (`VARIANTS`): the default policy as the executor runs it today, the classical
-controller (unchanged gains), the projection controller, and `SteadyDirection` around the
-policy with each of its parts alone and together, and around the projection controller (the
-wrapper is not specific to the policy).
+controller (unchanged gains), the projection controller, `SteadyDirection` around the policy
+with each of its parts alone and together, and around the projection controller (the wrapper
+is not specific to the policy); and two rejected candidates kept for their numbers: a
+curvature feed-forward estimated from d's own recent turns, and two policy sub-steps per
+control step.
 """
 
 from __future__ import annotations
@@ -20,21 +22,25 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from constraint_aware import deadband
 from constraint_aware.bench.analysis import Condition, PreloadSim
 from constraint_aware.control.controllers import (
+    HAND_SMOOTHING,
+    ControlInput,
     DirectionController,
     PolicyController,
     ProjectionController,
     SteadyConfig,
     SteadyDirection,
     make_controller,
+    turn_vector,
 )
 from constraint_aware.control.executor import Executor, orient_normal
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.simulate import NoisySensorSim, RunSpec, build_task, executor_config
-from constraint_aware.geometry import FloatArray, rotate_about
+from constraint_aware.geometry import FloatArray, rotate_about, unit
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.world import CONTROL_PERIOD
 
@@ -69,6 +75,75 @@ def _named(name: str) -> ControllerFactory:
     return build
 
 
+class EstimatedCurvature:
+    """Candidate (a), kept in the study only: d also turns by an exponential average
+    (HAND_SMOOTHING) of its own applied turns, a curvature feed-forward estimated from the
+    robot's recent motion with no geometry given; the hand follows paper 3.4.1 (the executor's
+    rule). Measured worse than the known rate: the initial offset's correction winds the
+    estimate up."""
+
+    def __init__(self, inner: DirectionController) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self._estimate = np.zeros(3)
+
+    def reset(self, direction: FloatArray) -> None:
+        self.inner.reset(direction)
+        self._estimate = np.zeros(3)
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        d = np.asarray(inp.direction, dtype=float)
+        proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
+        turn = turn_vector(d, unit(proposed)) + self._estimate
+        self._estimate = self._estimate + HAND_SMOOTHING * (turn - self._estimate)
+        return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
+
+    def step_length(self, nominal: float) -> float:
+        return self.inner.step_length(nominal)
+
+    def hand_rotation(self) -> Rotation | None:
+        return None
+
+
+class PolicySubSteps:
+    """Candidate (d), kept in the study only: the policy applied `n` times per control step on
+    the same force reading (each from the direction the last one gave). The diagnosis shows
+    the policy over-corrects small errors, so more correction per step is measured, not
+    expected to help."""
+
+    def __init__(self, inner: DirectionController, n: int = 2) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self.n = n
+
+    def reset(self, direction: FloatArray) -> None:
+        self.inner.reset(direction)
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        d = np.asarray(inp.direction, dtype=float)
+        for _ in range(self.n):
+            d = np.asarray(self.inner.next_direction(dataclasses.replace(inp, direction=d)))
+        return d
+
+    def step_length(self, nominal: float) -> float:
+        return self.inner.step_length(nominal)
+
+    def hand_rotation(self) -> Rotation | None:
+        return None
+
+
+def _wrapped(kind: str) -> ControllerFactory:
+    def build(
+        policy: ConstraintAwarePolicy, rate: float | None, normal: FloatArray
+    ) -> DirectionController:
+        inner = PolicyController(policy)
+        if kind == "curvature":
+            return EstimatedCurvature(inner)
+        return PolicySubSteps(inner, 2)
+
+    return build
+
+
 _OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False)
 
 #: label -> controller factory. "steady" is the full wrapper (controller "steady").
@@ -81,6 +156,8 @@ VARIANTS: dict[str, ControllerFactory] = {
     "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),
     "steady: smoothed hand only": _steady(_OFF),
     "steady: no known rate": _steady(SteadyConfig(rotation_feedforward=False)),
+    "estimated curvature": _wrapped("curvature"),
+    "policy sub-steps x2": _wrapped("substeps"),
     "projection": _named("projection"),
     "projection + steady": _steady(SteadyConfig(), inner="projection"),
 }

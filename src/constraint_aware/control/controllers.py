@@ -209,7 +209,7 @@ class SteadyDirection(_Base):
         proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
         if proposed.shape != (3,) or not np.all(np.isfinite(proposed)):
             return proposed  # the executor stops on it ("bad_command"), naming it
-        turn = _turn_vector(d, unit(proposed))
+        turn = turn_vector(d, unit(proposed))
         if cfg.overshoot_damping and np.linalg.norm(turn) > 1e-9:
             # the inner controller's own proposals: one that reverses the last overshot
             if float(turn @ self._last_turn) < 0:
@@ -238,7 +238,7 @@ class SteadyDirection(_Base):
         return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
 
 
-def _turn_vector(a: FloatArray, b: FloatArray) -> FloatArray:
+def turn_vector(a: FloatArray, b: FloatArray) -> FloatArray:
     """The rotation vector (3,) [rad] turning unit a onto unit b about a x b (zero if equal;
     for opposite vectors, any perpendicular axis)."""
     axis = np.cross(a, b)
