@@ -29,6 +29,7 @@ from constraint_aware.sim.jaco import (
     jaco_model_dir,
     rotvec,
 )
+from constraint_aware.sim.robot_adapter import SimulatedRobot, rotation_matrix
 from constraint_aware.sim.tasks import TASKS, task_config
 from constraint_aware.spatial import Pose, Wrench
 
@@ -140,12 +141,14 @@ class _TrueDirection(FixedDirection):
 
 
 @pytest.mark.parametrize("name", ["drawer-opening", "plate-sliding", "pole-pulling"])
-def test_grasp_holds_under_a_scripted_pull(name: str) -> None:
+def test_grasp_holds_under_a_scripted_pull(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
     task = task_config(name)
     sim = JacoSim(task)
     sim.reset()
-    # the subject is the grasp: the executor's start-of-run self-check assumes a quasi-static
-    # arm (F = k x deflection), which the lagging Jaco is not (README, "Second embodiment")
+    # the subject is the grasp: the executor's start-of-run self-check and arm-deflection stop
+    # assume a quasi-static arm (F = k x deflection), which the lagging Jaco is not (README,
+    # "Second embodiment"; its lag is `tracking_time_constant`)
+    monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
     cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
     record = Executor(sim, _TrueDirection(sim), cfg, monitor=sim).run(sim.admissible_direction())
     assert record.outcome == "success", record.reason
@@ -166,7 +169,9 @@ def _free_space_sim(osc: OscConfig) -> tuple[JacoSim, Pose]:
 
 
 def test_osc_holds_against_gravity_and_tracks_a_step() -> None:
-    sim, free = _free_space_sim(OscConfig())
+    # the control law at a stiff wrist: at the default 5 N m/rad the wrist joints' 1 N m dry
+    # friction holds turns under ~11 deg (OscConfig.rotational_stiffness)
+    sim, free = _free_space_sim(OscConfig(rotational_stiffness=30.0))
     sim._step(500)  # 1 s holding still: gravity compensated, no sag
     assert np.linalg.norm(sim.read_pose().position - free.position) < 5e-4
     target = free.moved(np.array([0.02, 0.0, 0.0]), Rotation.from_rotvec([0.0, 0.0, 0.1]))
@@ -178,26 +183,25 @@ def test_osc_holds_against_gravity_and_tracks_a_step() -> None:
     assert np.degrees((target.orientation * pose.orientation.inv()).magnitude()) < 2.5  # of 5.7
 
 
+PAPER_OFFSETS = {  # [deg] the paper's initial direction errors, one per task (paper 5.2)
+    "drawer-opening": 30.0,
+    "plate-sliding": -30.0,
+    "pole-pulling": -30.0,
+    "door-opening": 15.0,
+    "handle-rotating": 15.0,
+}
+
+
 @pytest.mark.parametrize(
-    "policy_name",
-    [
-        "paper",
-        pytest.param(
-            "default",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="the new default policy loses contact with the arm's lazy hook after "
-                "12 steps (10.6 cm) here; remove this mark when it succeeds",
-            ),
-        ),
-    ],
+    ("task", "policy_name"),
+    [("drawer-opening", "paper"), *((task, "default") for task in PAPER_OFFSETS)],
 )
-def test_drawer_with_the_policy_on_the_arm(
-    monkeypatch: pytest.MonkeyPatch, policy_name: str
+def test_paper_tasks_with_the_policy_on_the_arm(
+    monkeypatch: pytest.MonkeyPatch, task: str, policy_name: str
 ) -> None:
-    spec = RunSpec("drawer-opening", robot="jaco", controller="policy", offset_deg=30)
+    spec = RunSpec(task, robot="jaco", controller="policy", offset_deg=PAPER_OFFSETS[task])
     # without the executor's two guards that assume a quasi-static arm (F = k x deflection):
-    # the start-of-run self-check and the arm-deflection stop (see the xfail test below)
+    # the start-of-run self-check and the arm-deflection stop (with them: the test below)
     monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
     policy = ConstraintAwarePolicy.load(policy_name)
     record, sim = run(spec, policy=policy, executor_overrides={"self_check_steps": 0})
@@ -205,14 +209,26 @@ def test_drawer_with_the_policy_on_the_arm(
     assert sim.translational_stiffness == 1000.0
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the executor's quasi-static guards read the lagging arm's deflection as a rotated "
-    "sensor frame or a stalled arm (README, Second embodiment); remove this mark when they "
-    "no longer do",
+@pytest.mark.parametrize(
+    "task",
+    [
+        *(t for t in PAPER_OFFSETS if t != "door-opening"),
+        pytest.param(
+            "door-opening",
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="with every guard the door at +15 deg stops not_following at step 52 "
+                "(50 deg of 60): along the door's arc the arm's apparent mass grows (6.6 -> 14 "
+                "kg along x), its lag with it (~2.3 cm), beyond the lag the reported "
+                "tracking_time_constant (one number, measured at the grasp) credits; remove "
+                "this mark when it succeeds",
+            ),
+        ),
+    ],
 )
-def test_drawer_with_the_policy_on_the_arm_and_every_executor_guard() -> None:
-    record, _ = run(RunSpec("drawer-opening", robot="jaco", controller="policy", offset_deg=30))
+def test_paper_tasks_with_the_policy_on_the_arm_and_every_executor_guard(task: str) -> None:
+    spec = RunSpec(task, robot="jaco", controller="policy", offset_deg=PAPER_OFFSETS[task])
+    record, _ = run(spec)
     assert record.outcome == "success", record.reason
 
 
@@ -233,6 +249,8 @@ def test_robot_specs_and_variants() -> None:
 def test_rotvec_matches_scipy() -> None:
     for rot in Rotation.random(50, random_state=0):
         np.testing.assert_allclose(rotvec(rot.as_matrix()), rot.as_rotvec(), atol=1e-9)
+        np.testing.assert_allclose(rotation_matrix(rot.as_rotvec()), rot.as_matrix(), atol=1e-12)
+    np.testing.assert_array_equal(rotation_matrix(np.zeros(3)), np.eye(3))
 
 
 def test_embodiment_experiment_types_and_report_table() -> None:
@@ -253,3 +271,95 @@ def test_embodiment_experiment_types_and_report_table() -> None:
     assert res.paper[0].n == 1 and 0.0 <= res.paper[0].success_rate <= 1.0
     text = "\n".join(_embodiment_section(res.to_dict()))
     assert "| plate-sliding | policy |" in text
+
+
+@pytest.mark.parametrize("robot", ["hook-hand", "jaco"])
+@pytest.mark.parametrize("period", [0.02, 0.05, 0.1, 0.2])
+def test_a_control_period_lasts_exactly_its_nominal_time(robot: str, period: float) -> None:
+    sim = make_embodiment(f"{robot}:period={period}", task_config("drawer-opening"))
+    sim.reset()
+    pose = sim.read_pose()
+    t0 = sim.data.time
+    sim.command_pose(pose.moved(sim.admissible_direction() * 0.005))
+    sim.advance()
+    assert sim.data.time - t0 == pytest.approx(period, abs=1e-9)
+    assert sim.control_period == pytest.approx(period, abs=1e-12)
+    # the setpoint reached the commanded pose within the period
+    np.testing.assert_allclose(
+        sim.commanded_pose().position, pose.position + sim.admissible_direction() * 0.005, atol=1e-3
+    )
+
+
+@pytest.mark.parametrize("period", [0.051, 0.1001, 0.01])
+def test_a_period_that_is_not_a_whole_number_of_steps_is_refused(period: float) -> None:
+    if period >= 0.02:  # below, the spec's range check refuses it first
+        with pytest.raises(InvalidInputError, match="control_period"):
+            parse_robot(f"jaco:period={period}")
+    with pytest.raises(InvalidInputError, match="control_period"):
+        JacoSim(task_config("drawer-opening"), control_period=period)
+
+
+def _measured_rise_time(sim: SimulatedRobot, axis: np.ndarray, window: float = 3.0) -> float:
+    """[s] a 1 cm setpoint step along `axis` from rest, contacts off: when the tool point has
+    covered 63.2 % of it (measured on the episode's own data, as a user would)."""
+    m = sim.model
+    flags = m.opt.disableflags
+    m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    try:
+        sim._rest_at_measured()
+        sim._step(100)  # settle at rest without contacts
+        start = sim.read_pose()
+        sim._apply_setpoint(start.moved(0.01 * axis))
+        for i in range(1, round(window / 0.002) + 1):
+            sim._step(1)
+            if (sim.read_pose().position - start.position) @ axis >= 0.01 * (1 - math.exp(-1)):
+                return i * 0.002
+        return window
+    finally:
+        m.opt.disableflags = flags
+
+
+@pytest.mark.parametrize("robot", ["hook-hand", "hook-hand:stiffness=500", "jaco"])
+def test_tracking_time_constant_matches_a_measured_step_response(robot: str) -> None:
+    sim = make_embodiment(robot, task_config("drawer-opening"))
+    sim.reset()
+    tau = sim.tracking_time_constant
+    measured = []
+    for axis in np.eye(3):
+        sim.reset()
+        measured.append(_measured_rise_time(sim, axis))
+    # the mean over the translational axes, within 2 substeps (hook hand: the linear model is
+    # exact) or 10 % (Jaco: measured at build time from its grasp posture, here from the
+    # settled grasp)
+    tolerance = 0.004 if robot.startswith("hook-hand") else 0.1 * tau
+    assert float(np.mean(measured)) == pytest.approx(tau, abs=tolerance)
+    # the linear model (gains and apparent masses) is a lower bound: dry friction only slows
+    assert np.mean(sim.axis_time_constants()[:3]) <= tau + 0.004
+
+
+def test_tracking_time_constant_is_fixed_per_episode_and_follows_the_gains() -> None:
+    taus = []
+    for stiffness in (1000, 5000):
+        sim = make_embodiment(f"jaco:stiffness={stiffness}", task_config("drawer-opening"))
+        sim.reset()
+        before = sim.data.time
+        taus.append(sim.tracking_time_constant)
+        assert sim.tracking_time_constant == taus[-1]  # no re-measurement per call
+        assert sim.data.time == before  # measured on its own data: the episode is untouched
+    assert taus[1] < taus[0]  # a stiffer arm settles faster
+    assert 0.05 < taus[1] < taus[0] < 1.0
+
+
+@pytest.mark.parametrize("stiffness", [500, 100000])
+def test_the_arm_rests_stably_at_the_ends_of_the_stiffness_range(stiffness: int) -> None:
+    # the OSC runs at 250 Hz (OscConfig.control_substeps): the stiffest variant must not ring
+    sim = make_embodiment(f"jaco:stiffness={stiffness}", task_config("drawer-opening"))
+    sim.reset()
+    start = sim.read_pose().position
+    for _ in range(10):
+        sim.command_pose(sim.commanded_pose())
+        sim.advance()
+    assert np.all(np.isfinite(sim.data.qpos))
+    assert np.linalg.norm(sim.read_pose().position - start) < 1e-3
+    assert np.max(np.abs(sim.data.qvel)) < 0.05
+    assert sim.grasp_contact()

@@ -27,7 +27,7 @@ from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.embodiment import EMBODIMENTS
-from constraint_aware.sim.robot_adapter import FILTER_STEPS, RAMP_CHUNKS, TIMESTEP
+from constraint_aware.sim.robot_adapter import TIMESTEP, period_substeps
 from constraint_aware.sim.tasks import TASKS
 
 CONTROLLERS = ("policy", "classical", "projection", "fixed")
@@ -87,10 +87,8 @@ class EmbodimentResults:
 
 
 def simulated_period(nominal: float) -> float:
-    """[s] the time one `advance` simulates for a nominal period (sim/robot_adapter.py: ten
-    interpolation chunks, the last followed by the 20 ms filter window)."""
-    n = round(nominal / TIMESTEP / RAMP_CHUNKS)
-    return ((RAMP_CHUNKS - 1) * n + max(n - FILTER_STEPS, 0) + FILTER_STEPS) * TIMESTEP
+    """[s] the time one `advance` simulates for a nominal period (sim/robot_adapter.py)."""
+    return period_substeps(nominal) * TIMESTEP
 
 
 def _cell(

@@ -15,7 +15,7 @@ import numpy as np
 from constraint_aware.errors import InvalidInputError, UnknownNameError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.sim.monitor import GroundTruthMonitor
-from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, SimulatedRobot
+from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, SimulatedRobot, period_substeps
 from constraint_aware.sim.tasks import TaskConfig
 
 DEFAULT_ROBOT = "hook-hand"
@@ -33,6 +33,8 @@ class Embodiment(GroundTruthMonitor, SimulatedRobot):
         from constraint_aware.sim.grasp import grasp
 
         grasp(self)
+        # the tracking time constant at the grasp configuration, fixed for the episode
+        self._tracking_time_constant = self._free_space_time_constant()
 
 
 @dataclass(frozen=True)
@@ -57,13 +59,9 @@ def _jaco(task: TaskConfig, spec: RobotSpec) -> Embodiment:
 
     osc = OscConfig()
     if spec.stiffness is not None:
-        # rotational stiffness follows at the same fingertip-distance ratio (OscConfig)
-        ratio = osc.rotational_stiffness / osc.translational_stiffness
-        osc = replace(
-            osc,
-            translational_stiffness=spec.stiffness,
-            rotational_stiffness=spec.stiffness * ratio,
-        )
+        # translational only, as the hook hand's `hand__translational_stiffness`: the wrist's
+        # rotational stiffness stays (like with like)
+        osc = replace(osc, translational_stiffness=spec.stiffness)
     return JacoSim(task, osc, control_period=spec.period or CONTROL_PERIOD)
 
 
@@ -90,6 +88,8 @@ def parse_robot(text: str) -> RobotSpec:
         lo, hi = ROBOT_PARAMS[key]
         if not lo <= value <= hi:
             raise InvalidInputError(f"robot parameter {key}={value}; valid range {lo}-{hi}")
+        if key == "period":
+            period_substeps(value)  # a whole number of simulation steps
         values[key] = value
     return RobotSpec(name, **values)
 

@@ -10,22 +10,28 @@ joints) and one position servo per finger (force limit 1 N m, dm-control's finge
 limit). The arm base is placed per task from the object's pose (`arm_base`).
 
 Control. An operational-space impedance controller on MuJoCo's Jacobian and mass matrix runs
-every 2 ms substep (`OscConfig`):
+at 250 Hz, every second 2 ms substep, its torques held in between (`OscConfig`):
 
-    tau = J^T (K e - D (v - v_d)) + qfrc_bias + N^T tau_posture,  within the motors' limits
+    tau = J^T (K e - D (v - f v_d)) + qfrc_bias + N^T tau_posture + c B qdd,
+    within the motors' limits
 
 e: (position, rotation-vector) error of the tool point from its setpoint, v = J qdot, v_d the
-setpoint's velocity while the Cartesian interpolator moves it (zero at rest); K =
-diag(k_t I3, k_r I3); D = 2 zeta sqrt(K) sqrt(diag Lambda), Lambda = (J M^-1 J^T)^-1 the
-task-space inertia from `mj_solveM` (each axis damped at `damping_ratio` of its own apparent
-mass); qfrc_bias compensates gravity (arm, hand) and Coriolis terms; N^T = I - J^T Lambda J M^-1
-is the dynamically consistent null-space projector carrying a joint-space posture spring (toward
-the grasp configuration) and a repulsion within `limit_margin` of a joint limit; the joints' dry
-friction (dm-control's model: 2 N m / 1 N m frictionloss) is fed forward in the direction of the
-commanded torque. The motors are torque sources (`motor` actuators); at a motor's limit the
-task torque is scaled down as a whole (clipping joint by joint turns the force). The
-wrist sensor reads the wrench between flange and hand, so the arm's remaining friction and its
-large reflected inertia (armature 4 / 2 kg m^2) show as tracking error and lag, not as force.
+setpoint's velocity while the Cartesian interpolator moves it, f = `velocity_feedforward` (0:
+the damping acts on the tool's own velocity); K = diag(k_t I3, k_r I3); D = 2 zeta sqrt(K)
+sqrt(diag Lambda), Lambda = (J M_c^-1 J^T)^-1 the task-space inertia (each axis damped at
+`damping_ratio` of its own apparent mass) of M_c = M - c B, the inertia left after the joint
+torque loop hides the fraction c = `motor_inertia_compensation` of the rotor inertia B (the
+model's armature) with c B qdd (qdd of the previous substep); qfrc_bias compensates gravity
+(arm, hand) and Coriolis terms; N^T = I - J^T Lambda J M_c^-1 is the dynamically consistent
+null-space projector carrying a joint-space posture spring (toward the grasp configuration) and
+a repulsion within `limit_margin` of a joint limit; the joints' dry friction (dm-control's
+model: 2 N m / 1 N m frictionloss) is fed forward in the direction of the joint's motion (of
+the commanded torque while it sticks). The motors are torque sources (`motor` actuators); at the
+motors' limits the rotational part of the task torque yields first, then the task torque is
+scaled down as a whole (clipping joint by joint turns the force). The wrist sensor reads the
+wrench between flange and hand, so the arm's remaining friction and reflected inertia show as
+tracking error and lag, not as force: the tool settles with `tracking_time_constant` (measured
+once per grasp posture, ~0.3 s at the default 1000 N/m).
 """
 
 from __future__ import annotations
@@ -37,13 +43,15 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
+from scipy.linalg.lapack import dposv
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.errors import CapError, InvalidInputError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.sim.embodiment import Embodiment
+from constraint_aware.sim.hand import HandConfig
 from constraint_aware.sim.objects import object_frame
-from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
+from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, TIMESTEP, rotation_from_matrix
 from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose
@@ -66,6 +74,9 @@ FINGER_TORQUE = 1.0  # [N m] dm-control's finger actuator force limit
 # have ~4 mm of slack before the fingertips catch it, and the hand would start out of contact).
 TCP_FROM_FLANGE = 0.139  # [m]
 _IK_CACHE: dict[tuple[float, ...], FloatArray] = {}  # grasp configurations, see _solve_ik
+_TAU_CACHE: dict[tuple[float, ...], float] = {}  # tracking time constants, see below
+TRACKING_STEP = 0.01  # [m] the free-space step measured for the tracking time constant
+TRACKING_WINDOW = 3.0  # [s] the longest measured response (a slower axis reports this)
 
 
 def _consecutive(index: FloatArray, what: str) -> slice:
@@ -90,6 +101,15 @@ def rotvec(rot: FloatArray) -> FloatArray:
     return np.array([x * f, y * f, z * f])
 
 
+def _spd_solve(a: FloatArray, b: FloatArray) -> FloatArray:
+    """x with a x = b for a symmetric positive definite (n, n), b (n, k): LAPACK's Cholesky
+    solver, called directly (numpy's solve and inv cost 3-4x more per call at this size)."""
+    _, x, info = dposv(a, b)
+    if info != 0:  # not positive definite (numerically): the general solver
+        return np.asarray(np.linalg.solve(a, b), dtype=float)
+    return np.asarray(x, dtype=float)
+
+
 def jaco_model_dir() -> Path:
     """The directory of dm-control's Kinova models (installed with the `arm` extra)."""
     spec = importlib.util.find_spec("dm_control")
@@ -108,19 +128,58 @@ class OscConfig:
     """The arm's operational-space impedance controller. Units in brackets."""
 
     translational_stiffness: float = 1000.0  # [N/m] k_t, each axis (the step force: k_t x 1 cm)
-    rotational_stiffness: float = 30.0  # [N m/rad] k_r: k_t x (0.17 m)^2, the same stiffness
-    # felt at the fingertips' distance from the wrist; well above the 1 N m joint friction
+    rotational_stiffness: float = HandConfig.rotational_stiffness  # [N m/rad] k_r: the hook
+    # hand's wrist value (embodiment 1, 5 N m/rad): the hooks and the knob grasp let the
+    # object turn the hand, and a stiffer wrist fought it. Measured at 30 N m/rad (k_t x
+    # (0.17 m)^2), default policy, door at +15 deg: the commanded turns (the executor turns
+    # the hand with d) were not followed, the wrist neared its singularity (Lambda_xx 10 ->
+    # 71,000 kg at 5 deg of door) and the run ended on the force limit; at 10 N m/rad a
+    # timeout at 36 deg; at 5 it opens (60 deg). The price: against the wrist joints' 1 N m
+    # dry friction, free-space turns under 1/k_r (11 deg) are followed only in part
+
     damping_ratio: float = 1.0  # [-] zeta of each task-space axis against its apparent mass
+    velocity_feedforward: float = 0.0  # [-] f: the damping acts on v - f v_d. 0 (damping
+    # against the tool's own velocity, as the hook hand's servos): at f = 1 the damping pushed
+    # D v_d into any constraint the setpoint moved against (D ~ 170 N s/m: 17 N at 1 cm per
+    # period, on top of k x 1 cm = 10 N) and its kick at each period's start and end made the
+    # forces across the pole and the drawer's bar flip sign every period (measured, paper
+    # offsets, default policy, guards off: pole, door and handle failed at f = 1, 0.5; the
+    # pole, handle, drawer and plate succeed at 0; the free-space ramp lag is D v / k, ~17 mm
+    # at 10 cm/s)
     posture_stiffness: float = 5.0  # [N m/rad] null-space spring toward the grasp posture
     posture_damping: float = 1.0  # [N m s/rad]
     limit_margin: float = 0.15  # [rad] joint-limit repulsion starts this far from a limit
     limit_stiffness: float = 50.0  # [N m/rad] of the repulsion
     friction_compensation: float = 1.0  # [-] fraction of each joint's model frictionloss fed
-    # forward in the direction of the commanded torque (tanh over `friction_torque_scale`), as
-    # torque-controlled arms do: without it the joints' dry friction leaves a dead zone
-    # (measured in free space at 1000 N/m: 12 mm and 4 deg of a 20 mm / 6 deg step remain
-    # after 4 s; with it 1.8 mm and 1.5 deg)
+    # forward, as torque-controlled arms do: in the direction of the joint's motion while it
+    # moves (faster than `friction_velocity_scale`), of the commanded torque while it sticks
+    # (tanh over `friction_torque_scale`), blended in between. Without it the joints' dry
+    # friction leaves a dead zone (measured in free space at 1000 N/m: 12 mm and 4 deg of a
+    # 20 mm / 6 deg step remain after 4 s; with it 1.8 mm and 1.5 deg). By the commanded
+    # torque alone, a moving joint whose torque changes sign (a turning arm) lost it: the hand
+    # lagged its target with no force at the sensor (default policy, paper offsets: the
+    # plate's drag, the executor's arm-deflection guard stopped it; peak forces 12-21 N)
     friction_torque_scale: float = 0.2  # [N m]
+    friction_velocity_scale: float = 0.01  # [rad/s]
+    motor_inertia_compensation: float = 0.9  # [-] c: the fraction of each joint's reflected
+    # rotor inertia (the model's armature B, 4 / 2 kg m^2) that the joint torque loop hides:
+    # tau_m = tau_d + c B qdd (qdd from the previous substep, as a joint torque sensor sees it
+    # one sample late), i.e. torque feedback of gain c / (1 - c) (9 at c = 0.9; the range
+    # of torque-controlled arms, e.g. DLR's LWR); the arm then shows (1 - c) B. Without it
+    # the armature dominates the tool's apparent mass (58-82 kg of Lambda's translational
+    # diagonal at the drawer's grasp, 1.4-1.9 kg of it links and hand) and the tool settles
+    # with a ~0.9 s time constant at 1000 N/m, nine control periods.
+    apparent_mass_cap: float = 30.0  # [kg, kg m^2] Lambda = (J M^-1 J^T + I / cap)^-1, the
+    # singularity-robust (damped) inverse: at the grasps Lambda's translational diagonal is
+    # 5-13 kg (c = 0.9), near the wrist singularity it grew past 1500 kg and the damping
+    # 2 zeta sqrt(k Lambda) froze the arm (default policy, door at +15 deg: q5 -> -pi at 42
+    # deg of door, the hand 4-5 cm behind its setpoint, force limit at step 72). Two values
+    # were tried: 100 kg opened the door with the shipped executor but stopped on the lag-
+    # aware guards (not_following, step 51); 30 kg passed both
+    control_substeps: int = 2  # the OSC's torques are updated every this many 2 ms substeps:
+    # 250 Hz (Kinova's torque interface takes 100 Hz-1 kHz); at 4 ms the fastest axis of the
+    # stiffest variant (1e5 N/m) still has omega_n T < 1. Measured against 500 Hz (1): the five
+    # paper tasks end alike (default policy, same steps +-1, peaks within 3 N), at 2/3 the cost
     finger_stiffness: float = 5.0  # [N m/rad] finger position servo
     finger_damping: float = 0.05  # [N m s/rad]
 
@@ -135,6 +194,12 @@ class OscConfig:
             )
         if not 0.1 <= self.damping_ratio <= 5.0:
             raise InvalidInputError(f"damping_ratio {self.damping_ratio}; valid: 0.1-5")
+        if not 1 <= self.control_substeps <= 5:
+            raise InvalidInputError(f"control_substeps {self.control_substeps}; valid: 1-5")
+        if not 0.0 <= self.motor_inertia_compensation <= 0.95:
+            raise InvalidInputError(
+                f"motor_inertia_compensation {self.motor_inertia_compensation}; valid: 0-0.95"
+            )
 
 
 @dataclass(frozen=True)
@@ -276,7 +341,7 @@ class JacoSim(Embodiment):
             g for g in range(m.ngeom) if self._is_in_subtree(int(m.geom_bodyid[g]), hand_body)
         }
         self._bind_monitor(hand_geoms, OBJECT_PREFIX)
-        self._setpoint = Pose(np.zeros(3), Rotation.identity())
+        self._setpoint: Pose | None = Pose(np.zeros(3), Rotation.identity())
         self._sp_pos = np.zeros(3)
         self._sp_mat = np.eye(3)
         self._sp_vel = np.zeros(6)  # [m/s, rad/s] the setpoint's velocity (interpolator)
@@ -298,7 +363,15 @@ class JacoSim(Embodiment):
         self._err = np.zeros(6)
         fric = self.osc.friction_compensation * m.dof_frictionloss[self._dof_slice]
         self._friction = fric if np.any(fric) else None
-        self._eps = 1e-6 * np.eye(6)  # keeps Lambda finite at a singular configuration
+        # Lambda = (J M^-1 J^T + I / cap)^-1: its eigenvalues stay below the cap (OscConfig)
+        self._eps = np.eye(6) / self.osc.apparent_mass_cap
+        comp = self.osc.motor_inertia_compensation * m.dof_armature[self._dof_slice]
+        self._rotor_comp = comp if np.any(comp) else None  # [kg m^2] c B per arm joint
+        self._arm_diag = (self._arm_dof, self._arm_dof)  # the arm joints' diagonal of M
+        self._full_m = np.zeros((m.nv, m.nv))
+        self._rhs = np.hstack([np.eye(6), np.zeros((6, 1))])  # see _control
+        self._control_every = self.osc.control_substeps
+        self._phase = 0  # substeps since the last torque update
 
     def _is_in_subtree(self, body: int, root: int) -> bool:
         while body > 0:
@@ -313,42 +386,146 @@ class JacoSim(Embodiment):
         m, d = self.model, self.data
         jac, minv_jt, dofs = self._jac, self._minv_jt, self._dof_slice
         mujoco.mj_jacSite(m, d, jac[:3], jac[3:], self._tcp_site)
-        mujoco.mj_solveM(m, d, minv_jt, jac)  # rows: (M^-1 J^T)^T
+        self._solve_inertia(d, jac, minv_jt)
         j_arm, minv_arm = jac[:, dofs], minv_jt[:, dofs]
-        lam = np.linalg.inv(j_arm @ minv_arm.T + self._eps)
-        err = self._err
-        err[:3] = self._sp_pos - d.site_xpos[self._tcp_site]
-        err[3:] = rotvec(self._sp_mat @ d.site_xmat[self._tcp_site].reshape(3, 3).T)
         qvel = d.qvel[dofs]
-        # damping on the velocity error: a moving setpoint is tracked without a damping lag
-        vel_err = j_arm @ qvel - self._sp_vel
-        wrench = self._k * err - self._damp_gain * np.sqrt(lam.diagonal()) * vel_err
         # null space: posture spring and joint-limit repulsion, projected so that they do not
         # disturb the tool point (dynamically consistent: N^T = I - J^T Lambda J M^-1)
         q = d.qpos[self._qpos_slice]
         tau0 = self.osc.posture_stiffness * self._wrapped(self._posture - q)
         tau0 -= self.osc.posture_damping * qvel
         tau0 -= self._limit_gain * (np.minimum(q - self._lo, 0.0) + np.maximum(q - self._hi, 0.0))
-        tau = j_arm.T @ (wrench - lam @ (minv_arm @ tau0)) + tau0
-        if self._friction is not None:
-            tau += self._friction * np.tanh(tau / self.osc.friction_torque_scale)
+        # Lambda and Lambda J M^-1 tau0 from one solve of Lambda^-1 [Lambda | y] = [I | ...]
+        rhs = self._rhs
+        rhs[:, 6] = minv_arm @ tau0
+        lam_and_y = _spd_solve(j_arm @ minv_arm.T + self._eps, rhs)
+        lam_diag, lam_tau0 = lam_and_y[:, :6].diagonal(), lam_and_y[:, 6]
+        err = self._err
+        err[:3] = self._sp_pos - d.site_xpos[self._tcp_site]
+        err[3:] = rotvec(self._sp_mat @ d.site_xmat[self._tcp_site].reshape(3, 3).T)
+        # damping on the tool's velocity (less f times the setpoint's: OscConfig)
+        vel_err = j_arm @ qvel
+        if self.osc.velocity_feedforward:
+            vel_err -= self.osc.velocity_feedforward * self._sp_vel
+        wrench = self._k * err - self._damp_gain * np.sqrt(lam_diag) * vel_err
+        tau = j_arm.T @ (wrench - lam_tau0) + tau0
         bias = d.qfrc_bias[dofs]
+        room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
+        if self._friction is not None:
+            room = np.maximum(room - self._friction, 1e-3)  # what the feed-forward below adds
+        # at the motors' limits the rotation yields first: a large orientation error (the
+        # small wrist motors reach their 6.8 N m at 13 deg x 30 N m/rad) must not starve the
+        # force that holds the tool point on its path
+        rotation = j_arm[3:].T @ wrench[3:]
+        excess = np.abs(tau) / room
+        if float(np.max(excess)) > 1.0:
+            translation = tau - rotation
+            fit = float(np.max(np.abs(translation) / room))
+            if fit >= 1.0:
+                tau = translation / fit
+            else:
+                with np.errstate(divide="ignore"):
+                    share = (room - np.sign(rotation) * translation) / np.abs(rotation)
+                tau = translation + min(1.0, float(np.min(share))) * rotation
+        if self._friction is not None:
+            qvel = d.qvel[dofs]
+            moving = np.minimum(np.abs(qvel) / self.osc.friction_velocity_scale, 1.0)
+            sticking = np.tanh(tau / self.osc.friction_torque_scale)
+            tau += self._friction * (moving * np.sign(qvel) + (1.0 - moving) * sticking)
         # at a motor's limit, scale the whole task torque down rather than clip joints one by
         # one: clipping would turn the Cartesian force away from the commanded direction
         room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
-        excess = float(np.max(np.abs(tau) / room))
-        if excess > 1.0:
-            tau /= excess
+        excess_all = float(np.max(np.abs(tau) / room))
+        if excess_all > 1.0:
+            tau /= excess_all
+        if self._rotor_comp is not None:
+            bias = bias + self._rotor_comp * d.qacc[dofs]  # the torque loop (OscConfig)
         np.clip(tau + bias, -self._torque_limit, self._torque_limit, out=d.ctrl[self._act_slice])
+
+    def _solve_inertia(self, d: mujoco.MjData, jac: FloatArray, out: FloatArray) -> None:
+        """out (6, nv) = (M^-1 J^T)^T for the inertia the controller shapes: M less the rotor
+        inertia its torque loop hides (OscConfig.motor_inertia_compensation)."""
+        if self._rotor_comp is None:
+            mujoco.mj_solveM(self.model, d, out, jac)
+            return
+        full = self._full_m
+        mujoco.mj_fullM(self.model, d, full)
+        full[self._arm_diag] -= self._rotor_comp
+        out[:] = _spd_solve(full, jac.T).T
+
+    def _axis_dynamics(self, data: mujoco.MjData) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Each task-space axis as the OSC makes it (module docstring): stiffness K_ii, damping
+        D_ii = 2 zeta sqrt(K_ii Lambda_ii), apparent mass Lambda_ii at `data`'s configuration
+        (the arm's M less the rotor inertia the torque loop hides; the fingers ride along)."""
+        m = self.model
+        jac, minv_jt = np.zeros((6, m.nv)), np.zeros((6, m.nv))
+        mujoco.mj_jacSite(m, data, jac[:3], jac[3:], self._tcp_site)
+        self._solve_inertia(data, jac, minv_jt)
+        dofs = self._dof_slice
+        inverse = jac[:, dofs] @ minv_jt[:, dofs].T + self._eps
+        lam = np.asarray(np.linalg.inv(inverse).diagonal(), dtype=float)
+        damping = np.asarray(self._damp_gain * np.sqrt(lam), dtype=float)
+        return np.asarray(self._k, dtype=float), damping, lam
+
+    def _free_space_time_constant(self) -> float:
+        """[s] the tool point's tracking time constant, measured: the mean over three
+        `TRACKING_STEP` setpoint steps (world x, y, z) from rest at the grasp posture, with
+        contacts off (free space), of the time to 63.2 % of the step. Measured rather than
+        computed because the joints' dry friction, fed forward only in part at rest, slows the
+        linear response (`axis_time_constants`) at low stiffness (500 N/m: ~1 s). Runs on its
+        own MjData, so the episode's state is untouched; cached per base, posture and
+        controller gains."""
+        key = (*np.round(self.base, 9), *np.round(self._posture, 9), *vars(self.osc).values())
+        cached = _TAU_CACHE.get(key)
+        if cached is not None:
+            return cached
+        m = self.model
+        episode = (self.data, self.commanded_pose(), self._sp_vel, self._phase)
+        flags = m.opt.disableflags
+        m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        rises = []
+        try:
+            for axis in np.eye(3):
+                self.data = scratch = mujoco.MjData(m)
+                self._phase = 0
+                scratch.qpos[self._arm_qpos] = self._posture
+                scratch.qpos[self._finger_qpos] = episode[0].qpos[self._finger_qpos]
+                scratch.ctrl[:] = episode[0].ctrl
+                mujoco.mj_forward(m, scratch)
+                start = self.read_pose()
+                self._sp_vel = np.zeros(6)
+                self._apply_setpoint(start.moved(TRACKING_STEP * axis))
+                rise = TRACKING_WINDOW
+                for i in range(1, round(TRACKING_WINDOW / TIMESTEP) + 1):
+                    self._step(1)
+                    moved = (scratch.site_xpos[self._tcp_site] - start.position) @ axis
+                    if moved >= (1.0 - math.exp(-1.0)) * TRACKING_STEP:
+                        rise = i * TIMESTEP
+                        break
+                rises.append(rise)
+        finally:
+            m.opt.disableflags = flags
+            self.data, setpoint, self._sp_vel, self._phase = episode
+            self._apply_setpoint(setpoint)
+        tau = float(np.mean(rises))
+        _TAU_CACHE[key] = tau
+        return tau
 
     @staticmethod
     def _wrapped(a: FloatArray) -> FloatArray:
         return (a + np.pi) % (2 * np.pi) - np.pi
 
     def _step(self, n: int) -> None:
-        for _ in range(max(n, 0)):
-            self._control()
-            mujoco.mj_step(self.model, self.data)
+        """n substeps; the OSC's torques are updated every `OscConfig.control_substeps` of them
+        and held in between (zero-order hold, as a sampled torque interface)."""
+        m, d, every = self.model, self.data, self._control_every
+        while n > 0:
+            if self._phase == 0:
+                self._control()
+            run = min(n, every - self._phase)
+            mujoco.mj_step(m, d, nstep=run)
+            self._phase = (self._phase + run) % every
+            n -= run
 
     # --- SimulatedRobot -------------------------------------------------------------------
     @property
@@ -364,10 +541,19 @@ class JacoSim(Embodiment):
         self._sp_pos = np.asarray(pose.position, dtype=float)
         self._sp_mat = pose.orientation.as_matrix()
 
+    setpoint_as_matrix = True  # the OSC works on the setpoint's rotation matrix
+
+    def _apply_setpoint_matrix(self, position: FloatArray, rotation: FloatArray) -> None:
+        self._setpoint = None  # built from the matrices when asked (commanded_pose)
+        self._sp_pos = position
+        self._sp_mat = rotation
+
     def _rest_at_measured(self) -> None:
         self._apply_setpoint(self.read_pose())
 
     def commanded_pose(self) -> Pose:
+        if self._setpoint is None:
+            self._setpoint = Pose(self._sp_pos.copy(), rotation_from_matrix(self._sp_mat))
         return self._setpoint
 
     def _hand_extent(self, finger_angle: float, palm_only: bool = False) -> float:
@@ -464,6 +650,7 @@ class JacoSim(Embodiment):
         d = self.data
         q = self._solve_ik(pose)
         mujoco.mj_resetData(self.model, d)
+        self._phase = 0
         d.qpos[self._arm_qpos] = q
         self._posture = q.copy()
         d.qpos[self._finger_qpos] = self.grasp_kind.finger_start

@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.geometry import FloatArray, unit
 from constraint_aware.sim.objects import HANDLE_SITE, OBJECT_GEOM_PREFIX, OBJECT_JOINT
+from constraint_aware.sim.robot_adapter import rotation_from_matrix
 from constraint_aware.sim.tasks import TaskConfig
 
 
@@ -35,6 +36,11 @@ class GroundTruthMonitor:
         self._hand_geoms = hand_geoms
         start = prefix + OBJECT_GEOM_PREFIX
         self._object_geoms = {i for i, n in enumerate(names) if n.startswith(start)}
+        # the same sets as masks over geom ids, for `in_contact` (runs every filtered substep)
+        self._hand_mask = np.zeros(m.ngeom, dtype=bool)
+        self._hand_mask[list(hand_geoms)] = True
+        self._object_mask = np.zeros(m.ngeom, dtype=bool)
+        self._object_mask[list(self._object_geoms)] = True
         self._grasp_rel: tuple[FloatArray, Rotation] | None = None
 
     def _record_grasp(self) -> None:
@@ -63,8 +69,8 @@ class GroundTruthMonitor:
 
     def _hand_in_handle(self) -> tuple[FloatArray, Rotation]:
         d = self.data
-        h_rot = Rotation.from_matrix(d.site_xmat[self._handle_site].reshape(3, 3))
-        t_rot = Rotation.from_matrix(d.site_xmat[self._tcp_site].reshape(3, 3))
+        h_rot = rotation_from_matrix(d.site_xmat[self._handle_site])
+        t_rot = rotation_from_matrix(d.site_xmat[self._tcp_site])
         rel = h_rot.inv().apply(d.site_xpos[self._tcp_site] - d.site_xpos[self._handle_site])
         return rel, h_rot.inv() * t_rot
 
@@ -78,13 +84,11 @@ class GroundTruthMonitor:
     def in_contact(self) -> bool:
         """Whether any hand geom touches any object geom."""
         d = self.data
-        for i in range(d.ncon):
-            g1, g2 = int(d.contact.geom1[i]), int(d.contact.geom2[i])
-            if (g1 in self._hand_geoms and g2 in self._object_geoms) or (
-                g2 in self._hand_geoms and g1 in self._object_geoms
-            ):
-                return True
-        return False
+        if d.ncon == 0:
+            return False
+        g1, g2 = d.contact.geom1, d.contact.geom2  # (ncon,) each, in one call
+        hand, obj = self._hand_mask, self._object_mask
+        return bool(np.any((hand[g1] & obj[g2]) | (hand[g2] & obj[g1])))
 
     def grasp_failure(self) -> str | None:
         dist, ang = self.slip()
