@@ -57,6 +57,7 @@ class EnvConfig:
     workplane: Workplane = "random"  # "random": plane normal uniform on the sphere (any pose)
     friction: tuple[float, float] = (0.0, 0.15)  # Coulomb coefficient of the guide [-]
     stiffness: tuple[float, float] = (1000.0, 3000.0)  # hand (wrist) stiffness [N/m]
+    stiffness_log_uniform: bool = False  # draw k log-uniformly (for ranges over decades)
     force_gain: tuple[float, float] = (0.8, 1.25)  # sensor scale error [-]: moves |F| vs threshold
     threshold: float = 0.2  # [N] measured |F| below this is observed as the zero vector
     force_noise: float = 0.05  # std of Gaussian noise on the observed unit force, first step

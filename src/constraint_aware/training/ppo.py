@@ -26,6 +26,7 @@ from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.torch_layers import MlpExtractor
+from stable_baselines3.common.utils import LinearSchedule
 from stable_baselines3.common.vec_env import VecEnv
 
 import constraint_aware
@@ -62,7 +63,8 @@ class TrainConfig:
     preset: str = "fast"
     total_timesteps: int = 1_200_000  # env steps (actions) over the whole run
     n_envs: int = 1200  # episodes per rollout; rollout batch = n_envs * T (paper: 6000)
-    learning_rate: float = 1e-3  # Adam step size
+    learning_rate: float = 1e-3  # Adam step size (at the start, if final_learning_rate is set)
+    final_learning_rate: float | None = None  # None: constant; else linear to this at the end
     batch_size: int = 1000  # PPO minibatch; must divide the rollout batch
     n_epochs: int = 10  # passes over each rollout
     gamma: float = 0.99  # discount over the 5-step episode
@@ -106,6 +108,9 @@ class TrainConfig:
             raise bad("batch_size", f"must be <= the rollout batch n_envs * T = {rollout}")
         if not (math.isfinite(self.learning_rate) and self.learning_rate > 0):
             raise bad("learning_rate", "must be finite and > 0")
+        final_lr = self.final_learning_rate
+        if final_lr is not None and not (math.isfinite(final_lr) and final_lr >= 0):
+            raise bad("final_learning_rate", "must be None or finite and >= 0")
         for name in ("gamma", "gae_lambda"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise bad(name, "must lie in [0, 1]")
@@ -301,10 +306,15 @@ def write_log(rows: list[dict[str, float]], path: Path) -> None:
 
 def build_model(vec_env: VecEnv, config: TrainConfig) -> PPO:
     """The PPO model of a config: MLP tanh policy and value nets (paper 5.1), on the CPU."""
+    learning_rate: float | LinearSchedule = config.learning_rate
+    if config.final_learning_rate is not None:
+        # annealed over total_timesteps: large early steps for speed, small late ones so the
+        # last evaluations are not dominated by the step noise of a constant rate
+        learning_rate = LinearSchedule(config.learning_rate, config.final_learning_rate, 1.0)
     return PPO(
         "MlpPolicy",
         vec_env,
-        learning_rate=config.learning_rate,
+        learning_rate=learning_rate,
         n_steps=config.env.episode_length,  # one episode per env per rollout
         batch_size=config.batch_size,
         n_epochs=config.n_epochs,
