@@ -178,20 +178,7 @@ def test_osc_holds_against_gravity_and_tracks_a_step() -> None:
     assert np.degrees((target.orientation * pose.orientation.inv()).magnitude()) < 2.5  # of 5.7
 
 
-@pytest.mark.parametrize(
-    "policy_name",
-    [
-        "paper",
-        pytest.param(
-            "default",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="the new default policy loses contact with the arm's lazy hook after "
-                "12 steps (10.6 cm) here; remove this mark when it succeeds",
-            ),
-        ),
-    ],
-)
+@pytest.mark.parametrize("policy_name", ["paper", "default"])
 def test_drawer_with_the_policy_on_the_arm(
     monkeypatch: pytest.MonkeyPatch, policy_name: str
 ) -> None:

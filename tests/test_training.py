@@ -84,6 +84,18 @@ def test_default_preset_trains_with_resistance() -> None:
     config = make_config("default")
     assert config.env.has_resistance
     assert config.env.resistance_free_share == 0.5
+    assert config.env.stiffness == (500.0, 20_000.0) and config.env.stiffness_log_uniform
+
+
+def test_shipped_default_was_trained_by_the_default_preset() -> None:
+    """The card's training config is the preset's (torch threads aside), so `cap train
+    --preset default --seed 0 --torch-threads N` retrains the shipped policy."""
+    import json
+
+    card = ConstraintAwarePolicy.load("default").card
+    preset = make_config("default", torch_threads=card["train_config"]["torch_threads"])
+    assert card["train_config"] == json.loads(json.dumps(preset.to_dict()))
+    assert card["seed"] == 0
 
 
 def test_final_learning_rate_anneals_linearly() -> None:

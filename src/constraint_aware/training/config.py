@@ -164,6 +164,15 @@ RESISTANCE: dict[str, Any] = {
 }
 
 
+#: [N/m] the wrist stiffness k the default policy is trained over, drawn log-uniformly
+#: (`stiffness_log_uniform`): from a soft 500 N/m wrist to the 20,000 N/m stiffness variants of
+#: embodiment 2 (k*delta 5-200 N), so every robot of the bench is inside the training range.
+#: The analytic physics scales with k except for the absolute terms (the 0.2 N threshold, the
+#: up-to-1 N absolute dry friction), so the range costs little accuracy at 1000-3000 N/m
+#: (measured in benchmarks/results/default_policy.json).
+WIDE_STIFFNESS = (500.0, 20_000.0)
+
+
 #: "magnitude": the share of episodes in which the robot reports no step force (the input is
 #: zero), so that a robot without `translational_stiffness` gets a trained fallback.
 STEP_FORCE_UNKNOWN_SHARE = 0.25
