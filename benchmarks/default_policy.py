@@ -12,6 +12,8 @@ carried over) and data/training_log.csv, and benchmarks/results/default_policy.j
 --compare, other policies (e.g. the previous default) are measured the same way for the JSON.
 `closed-loop` runs the observation study's 13 MuJoCo resistance cases (seeds 0, 1) for the
 shipped default, the --compare policies and classical, and fills the default's card row.
+`forces` compares their forces on the randomized suite's door and drawer (first --seeds
+seeds) and on every task at the paper's offsets.
 """
 
 from __future__ import annotations
@@ -182,6 +184,58 @@ def closed_loop(compare: list[str]) -> None:
         policy.with_card(card).save(shipped_policy_path("default"))
 
 
+def forces(compare: list[str], seeds: int) -> None:
+    """The randomized suite's first `seeds` seeds on the door and the drawer, and every task at
+    the paper's offsets: success, median peak and mean |F| of the shipped default, `compare`
+    (LABEL=PATH) and classical, in one run (derived 0.4 N dead band, 0.1 N sensor noise)."""
+    import statistics
+
+    from constraint_aware import deadband
+    from constraint_aware.bench.analysis import (
+        paper_offset_conditions,
+        run_condition,
+        suite_conditions,
+    )
+
+    policies = {"default": ConstraintAwarePolicy.load("default")}
+    for item in compare:
+        label, _, path = item.partition("=")
+        policies[label] = ConstraintAwarePolicy.load(path)
+    thr = deadband.threshold_from_noise(0.1)
+    cases = [
+        (c, s) for c, s in suite_conditions(seeds) if c.task in ("door-opening", "drawer-opening")
+    ]
+    cases += [(c, 0) for c in paper_offset_conditions()]
+    runs = []
+    for cond, seed in cases:
+        runs.append(run_condition(cond, "classical", seed, thr))
+        for label, policy in policies.items():
+            runs.append(run_condition(cond, label, seed, thr, policy=policy))
+    cells: dict[str, Any] = {}
+    for r in runs:
+        key = f"{r.condition.axis}|{r.condition.task}|{r.controller}"
+        cells.setdefault(key, []).append(r)
+    summary = {
+        key: {
+            "successes": sum(r.success for r in rs),
+            "runs": len(rs),
+            "median_peak_N": statistics.median(r.peak_force_N for r in rs),
+            "mean_force_N": statistics.fmean(r.mean_force_N for r in rs),
+        }
+        for key, rs in sorted(cells.items())
+    }
+    for key, value in summary.items():
+        print(key, value)
+    out = json.loads(OUT.read_text())
+    out["forces"] = {
+        "threshold_N": thr,
+        "suite_seeds": seeds,
+        "summary": summary,
+        "runs": [dataclasses.asdict(r) for r in runs],
+    }
+    OUT.write_text(json.dumps(out, indent=2) + "\n")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="cmd", required=True)
@@ -193,8 +247,13 @@ def main() -> None:
     s.add_argument("--compare", nargs="*", default=[])
     c = sub.add_parser("closed-loop")
     c.add_argument("--compare", nargs="*", default=[])
+    f = sub.add_parser("forces")
+    f.add_argument("--compare", nargs="*", default=[])
+    f.add_argument("--seeds", type=int, default=5)
     args = parser.parse_args()
-    if args.cmd == "train":
+    if args.cmd == "forces":
+        forces(args.compare, args.seeds)
+    elif args.cmd == "train":
         train_run(args.seed, args.threads)
     elif args.cmd == "ship":
         ship(Path(args.run), args.compare)

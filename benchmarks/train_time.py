@@ -6,8 +6,9 @@
 
 Runs the real command line in a subprocess per seed, on however many cores torch is given
 (the preset's `torch_threads`). For each seed it runs the preset and then, unless
---no-baseline, the default preset as it was at stop 15 (`BASELINE_FLAGS`: 2x256 net, 10 epochs,
-k uniform in 1000-3000 N/m), so the two share the machine's load and their ratio means
+--no-baseline, the default preset as it was at stop 15 (`BASELINE_PRESET` +
+`BASELINE_FLAGS`: 2x256 net, 10 epochs, constant learning rate, k uniform in 1000-3000 N/m),
+so the two share the machine's load and their ratio means
 something on a shared machine. Prints JSON with each run, the medians over seeds, the median
 of the per-seed ratios new/old, and the machine's load average before and after (a load
 above the core count means the times are not the training's alone). Each run also records the
@@ -27,13 +28,15 @@ import time
 from pathlib import Path
 from typing import Any
 
-#: The `default` preset of stop 15 (commit 1a89c01, 81.5 s to 3 deg on a quiet machine),
-#: spelled as `cap train` flags over today's `default` preset.
+#: The `default` preset of stop 15 (commit 1a89c01, 81.5 s to 3 deg on a quiet machine):
+#: today's `fast` preset (2x256, 10 epochs, constant learning rate 1e-3, 1.2 M steps) in the
+#: stop-15 training environment (resistance, magnitude observation, k uniform in 1000-3000 N/m).
+BASELINE_PRESET = "fast"
 BASELINE_FLAGS = (
-    "--net-arch", "256", "256", "--n-epochs", "10", "--batch-size", "1000", "--n-envs", "1200",
-    "--learning-rate", "1e-3", "--log-std-init", "-1.0", "--total-timesteps", "1200000",
-    "--eval-every", "5", "--eval-episodes", "4000",
-    "--env.stiffness", "1000", "3000", "--no-env.stiffness-log-uniform",
+    "--env.observation", "magnitude", "--env.resistance-free-share", "0.5",
+    "--env.dry-friction", "0", "0.3", "--env.dry-friction-abs", "0", "1",
+    "--env.damping", "0", "0.1", "--env.inertia", "0", "0.1", "--env.preload", "0", "0.3",
+    "--env.step-force-unknown-share", "0.25",
 )  # fmt: skip
 #: torch threads of the stop-15 preset (its 81.5 s were measured with 2 on a quiet machine).
 BASELINE_THREADS = 2
@@ -99,7 +102,7 @@ def main() -> None:
     for seed in args.seeds:  # interleaved: new and old see the same load
         new.append(run_once(args.preset, seed, args.target, ()))
         if not args.no_baseline and seed in baseline_seeds:
-            old.append(run_once("default", seed, args.target, baseline))
+            old.append(run_once(BASELINE_PRESET, seed, args.target, baseline))
     result: dict[str, Any] = {
         "cores": os.cpu_count(),
         "load_average_1_5_15_before": load_before,
@@ -116,7 +119,7 @@ def main() -> None:
             if by_seed[o["seed"]]["target_reached_s"] is not None
             and o["target_reached_s"] is not None
         ]
-        result["baseline"] = {"flags": list(baseline), **summary(old)}
+        result["baseline"] = {"preset": BASELINE_PRESET, "flags": list(baseline), **summary(old)}
         result["per_seed_ratio_new_over_old"] = ratios
         result["median_ratio_new_over_old"] = statistics.median(ratios) if ratios else None
     text = json.dumps(result, indent=2)
