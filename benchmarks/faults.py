@@ -1,12 +1,14 @@
 """Fault injection matrix: every fault on every task with the default policy. Writes JSON.
 
-    python benchmarks/faults.py [--offsets -30 15 30] [--seeds 0 1] [--out FILE]
+    python benchmarks/faults.py [--offsets -30 15 30] [--seeds 0 1] [--lag gains] [--out FILE]
 
 Each run injects one fault of `constraint_aware.bench.faults.FAULTS` (NaN wrench or pose, pose
 glitches of 2/5/50 cm, a frozen arm for good or for 10/20/30 periods, lost comms, a 200 N
 spike, a 0.2 N/period bias drift, a sensor frame rotated 90 deg, a flipped sign, stale samples,
 a pose lagging 3 periods) and is classified as a safe stop, a correct continuation (success)
 or dangerous (the invariants in bench/faults.py). Writes benchmarks/results/faults.json.
+`--lag gains`: the robot reports its tracking_time_constant (c / k of the hook hand's arm),
+so the executor's arm-deflection guards use their lag model.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import json
 import time
 from pathlib import Path
 
-from constraint_aware.bench.faults import FAULTS, fault_suite
+from constraint_aware.bench.faults import FAULTS, fault_suite, hook_hand_time_constant
 from constraint_aware.sim.tasks import TASKS
 
 RESULT = Path(__file__).parent / "results" / "faults.json"
@@ -27,10 +29,19 @@ def main() -> None:
     parser.add_argument("--offsets", type=float, nargs="+", default=[-30.0, 15.0, 30.0])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--out", type=Path, default=RESULT)
+    parser.add_argument(
+        "--lag",
+        choices=["reported", "gains"],
+        default="reported",
+        help="the robot's tracking_time_constant: whatever the simulator reports (none: the "
+        "executor assumes a quasi-static arm), or c/k from the hook hand's gains",
+    )
     args = parser.parse_args()
     start = time.perf_counter()
-    suite = fault_suite(tuple(TASKS), tuple(FAULTS), args.offsets, args.seeds)
+    lag = hook_hand_time_constant if args.lag == "gains" else None
+    suite = fault_suite(tuple(TASKS), tuple(FAULTS), args.offsets, args.seeds, lag=lag)
     out = suite.to_dict()
+    out["lag"] = args.lag
     out["offsets_deg"] = args.offsets
     out["seeds"] = args.seeds
     out["n_runs"] = len(suite.runs)

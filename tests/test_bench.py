@@ -49,6 +49,10 @@ def bench_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_every_number_in_the_report_is_in_results(bench_dir: Path) -> None:
+    assert_report_numbers_in_results(bench_dir)
+
+
+def assert_report_numbers_in_results(bench_dir: Path) -> None:
     results = json.loads((bench_dir / "results.json").read_text())
     values = list(_numbers(results))
     report = (bench_dir / "report.md").read_text()
@@ -159,3 +163,172 @@ def test_policy_section_in_results_and_report(bench_dir: Path) -> None:
         "## Policies: paper vs default vs classical vs projection"
         in (bench_dir / "report.md").read_text()
     )
+
+
+# --- the bench's policy and robot (cap bench --policy / --robot) ------------------------------
+CHOSEN_ROBOT = "hook-hand:stiffness=3000"
+
+
+@pytest.fixture(scope="module")
+def chosen_bench_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("bench-chosen")
+    proc = subprocess.run(
+        [sys.executable, "-m", "constraint_aware.cli", "bench", "--quick", "--out", str(out),
+         "--policy", "paper", "--robot", CHOSEN_ROBOT],
+        capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return out
+
+
+def test_bench_records_and_uses_the_chosen_policy_and_robot(
+    bench_dir: Path, chosen_bench_dir: Path
+) -> None:
+    default = json.loads((bench_dir / "results.json").read_text())
+    chosen = json.loads((chosen_bench_dir / "results.json").read_text())
+    pol, base = chosen["meta"]["policy"], default["meta"]["policy"]
+    assert (pol["name"], pol["shipped"], base["name"]) == ("paper", True, "default")
+    assert pol["card_sha256"] != base["card_sha256"]
+    assert pol["weights_sha256"] != base["weights_sha256"]
+    assert (chosen["meta"]["robot"], default["meta"]["robot"]) == (CHOSEN_ROBOT, "hook-hand")
+    # every paper run on the chosen robot; the policy runs with the chosen policy
+    for name, s in chosen["paper"].items():
+        record = json.loads((chosen_bench_dir / s["record"]).read_text())
+        assert record["label"]["robot"] == CHOSEN_ROBOT, name
+        if s["controller"] == "policy":
+            assert record["label"]["policy"] == "paper", name
+    assert default["paper"]["fig6_drawer_+30_policy"]["policy"] == "default"
+    assert {w["robot"] for w in chosen["worst_cases"]} == {CHOSEN_ROBOT}  # the suite's runs
+    assert chosen["learning"]["policy"] == "paper"
+    # the policy section still compares the named policies, on the hook hand: unchanged
+    assert chosen["policy_section"] == default["policy_section"]
+    report = (chosen_bench_dir / "report.md").read_text()
+    assert f"card sha256 `{pol['card_sha256'][:16]}`" in report
+    assert f"Robot: `{CHOSEN_ROBOT}`" in report
+    assert_report_numbers_in_results(chosen_bench_dir)
+
+
+def test_policy_identity_is_the_content_not_the_file_name(tmp_path: Path) -> None:
+    import shutil
+
+    from constraint_aware.bench.run import policy_identity
+    from constraint_aware.policy import ConstraintAwarePolicy, shipped_policy_path
+
+    src = shipped_policy_path("paper")
+    shutil.copy(src, tmp_path / "mine.npz")
+    shutil.copy(src.with_suffix(".json"), tmp_path / "mine.json")
+    shipped = policy_identity(ConstraintAwarePolicy.load("paper"), "paper")
+    copy = policy_identity(ConstraintAwarePolicy.load(tmp_path / "mine.npz"), tmp_path / "mine.npz")
+    assert copy["source"] == str(tmp_path / "mine.npz") and not copy["shipped"]
+    assert (copy["card_sha256"], copy["weights_sha256"]) == (
+        shipped["card_sha256"],
+        shipped["weights_sha256"],
+    )
+    default = policy_identity(ConstraintAwarePolicy.load(), None)
+    assert default["shipped"] and default["card_sha256"] != shipped["card_sha256"]
+
+
+def test_every_bench_experiment_runs_on_the_chosen_robot() -> None:
+    from constraint_aware.bench import experiments as ex
+
+    robot = "jaco:period=0.05"
+    cfg = ex.BenchConfig.for_mode(False, workers=1, robot=robot)
+    assert {s.robot for s in ex.paper_specs(robot).values()} == {robot}
+    assert {s.robot for s in ex.headline_specs(cfg)} == {robot}
+    assert {s.robot for s in ex.heatmap_specs(cfg)} == {robot}
+    cells = ex.sensitivity_cells(cfg)
+    stiffness = {s.robot for s, keys in cells.items() if keys[0][0] == "wrist stiffness"}
+    assert stiffness == {f"jaco:stiffness={k:g},period=0.05" for k in (1000, 2000, 4000, 8000)}
+    assert {s.robot for s, keys in cells.items() if keys[0][0] != "wrist stiffness"} == {robot}
+    assert not any(k.startswith("hand__") for s in cells for k, _ in s.overrides)
+    # on the hook hand the wrist stiffness stays the hand's own override, as before
+    hook = ex.sensitivity_cells(ex.BenchConfig.for_mode(False, workers=1))
+    assert {s.robot for s in hook} == {"hook-hand"}
+
+
+def test_run_many_gives_the_policy_to_every_worker() -> None:
+    from constraint_aware.bench.sweep import run_many
+    from constraint_aware.control.simulate import RunSpec
+    from constraint_aware.policy import ConstraintAwarePolicy
+
+    specs = [RunSpec("drawer-opening", c, 30.0) for c in ("policy", "classical")]
+    paper = ConstraintAwarePolicy.load("paper")
+    pooled = run_many(specs, workers=2, quiet=True, policy=paper)  # two processes
+    assert pooled == run_many(specs, workers=1, quiet=True, policy=paper)
+    assert pooled[0]["summary"]["policy"] == "paper" and "policy" not in pooled[1]["summary"]
+    assert run_many(specs[:1], workers=1, quiet=True)[0]["summary"]["policy"] == "default"
+
+
+def test_run_many_on_the_jaco_with_the_chosen_policy() -> None:
+    """The smallest Jaco case of the bench: one policy run through the bench's runner."""
+    from constraint_aware.bench import experiments as ex
+    from constraint_aware.bench.sweep import run_many
+    from constraint_aware.control.simulate import RunSpec
+    from constraint_aware.policy import ConstraintAwarePolicy
+
+    cfg = ex.BenchConfig.for_mode(True, workers=1, robot="jaco")
+    spec = cfg.on_robot(RunSpec("plate-sliding", "policy", -30.0))
+    (result,) = run_many([spec], workers=1, quiet=True, policy=ConstraintAwarePolicy.load("paper"))
+    assert result["spec"]["robot"] == result["summary"]["robot"] == "jaco"
+    assert result["summary"]["policy"] == "paper" and result["summary"]["steps"] >= 1
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--policy", "nope"], "unknown policy 'nope'; valid names: default, paper"),
+        (["--policy", "BAD"], "not a readable .npz"),
+        (["--robot", "nao"], "unknown robot 'nao'; valid names: hook-hand, jaco"),
+        (["--robot", "jaco:stiffness=1"], "valid range"),
+    ],
+)
+def test_bench_policy_and_robot_are_validated_before_anything_runs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    from constraint_aware.cli import main
+    from constraint_aware.policy import shipped_policy_path
+
+    bad = tmp_path / "bad.npz"
+    bad.write_bytes(b"not a zip")
+    (tmp_path / "bad.json").write_text(shipped_policy_path().with_suffix(".json").read_text())
+    argv = [str(bad) if a == "BAD" else a for a in args]
+    out = tmp_path / "out"
+    assert main(["bench", "--quick", "--out", str(out), *argv]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()  # nothing was run or written
+
+
+def test_bench_replot_takes_no_policy_or_robot(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from constraint_aware.cli import main
+
+    for flags in (["--policy", "paper"], ["--robot", "jaco"]):
+        assert main(["bench", "--replot", str(tmp_path), *flags]) == 2
+        assert (
+            "--replot redraws a finished bench: no --policy or --robot" in capsys.readouterr().err
+        )
+
+
+def test_learning_section_of_a_policy_file_with_and_without_its_log(tmp_path: Path) -> None:
+    import shutil
+
+    from constraint_aware.bench import experiments as ex
+    from constraint_aware.bench.figures import fig_learning
+    from constraint_aware.policy import ConstraintAwarePolicy, shipped_log_path, shipped_policy_path
+
+    src = shipped_policy_path("paper")
+    (tmp_path / "p").mkdir()
+    for suffix in (".npz", ".json"):
+        shutil.copy(src.with_suffix(suffix), tmp_path / "p" / f"mine{suffix}")
+    path = tmp_path / "p" / "mine.npz"
+    out = tmp_path / "out"
+    out.mkdir()
+    le = ex.learning(out, ConstraintAwarePolicy.load(path), path)
+    assert (le["has_log"], le["log_points"], le["policy"]) == (False, 0, "paper")
+    results = {"learning": le}
+    assert (out / fig_learning(out, results)).read_bytes()[:8] == PNG  # an empty curve
+    shutil.copy(shipped_log_path("paper"), tmp_path / "p" / "training_log.csv")
+    le = ex.learning(out, ConstraintAwarePolicy.load(path), path)
+    assert le["has_log"] and le["log_points"] > 0
+    assert (out / "training_log.csv").read_text() == shipped_log_path("paper").read_text()

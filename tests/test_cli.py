@@ -210,6 +210,31 @@ def test_eval_missing_policy_is_a_clear_error(tmp_path: Path) -> None:
     assert "not found" in out.stderr
 
 
+def test_eval_policy_flag_evaluates_that_policy(tmp_path: Path) -> None:
+    from constraint_aware.cli import strict
+    from constraint_aware.policy import ConstraintAwarePolicy
+    from constraint_aware.training.config import EnvConfig
+    from constraint_aware.training.evaluate import evaluate
+
+    out = cap("eval", "--policy", "paper", "--episodes", "300", "--json", str(tmp_path / "e.json"))
+    assert out.returncode == 0, out.stderr
+    paper = ConstraintAwarePolicy.load("paper")
+    config = EnvConfig.from_dict(paper.card.get("env_config", {}))
+    expected = evaluate(lambda obs, _f: paper.act_batch(obs), config, episodes=300, seed=12345)
+    assert json.loads((tmp_path / "e.json").read_text())["policy"] == strict(expected.to_dict())
+    out = cap("eval", "--policy", "nope")
+    assert out.returncode == 2 and "valid names: default, paper" in out.stderr
+
+
+def test_run_policy_flag_drives_the_run_with_that_policy(tmp_path: Path) -> None:
+    for name in ("paper", "default"):
+        out = cap("run", "drawer-opening", "--policy", name, "--json", str(tmp_path / "r.json"))
+        assert out.returncode in (0, 1), out.stderr
+        assert json.loads((tmp_path / "r.json").read_text())["label"]["policy"] == name
+    out = cap("run", "drawer-opening", "--policy", str(tmp_path / "none.npz"))
+    assert out.returncode == 2 and "not found" in out.stderr
+
+
 @pytest.mark.slow
 def test_train_tiny_budget(tmp_path: Path) -> None:
     pytest.importorskip("stable_baselines3")
@@ -273,6 +298,18 @@ def test_lfo_json_is_a_path(tmp_path: Path) -> None:
     assert json.loads((tmp_path / "s.json").read_text())["skill"]["constraint_type"] == "revolute"
     out = cap("lfo", str(demo), "--json", "-")
     assert json.loads(out.stdout)["skill"]["constraint_type"] == "revolute"
+
+
+def test_lfo_prints_every_note_of_its_json(tmp_path: Path) -> None:
+    """The assumptions and disagreements are in the human-readable output, not only in --json."""
+    demo = Path(__file__).resolve().parents[1] / "examples" / "drawer_path.csv"
+    out = cap("lfo", str(demo), "--execute", "--json", str(tmp_path / "s.json"))
+    assert out.returncode == 0, out.stderr
+    data = json.loads((tmp_path / "s.json").read_text())
+    notes = data["skill"]["warnings"] + data["execution"]["notes"]
+    assert data["execution"]["notes"]  # a csv has no words: the object kind is assumed
+    printed = [line.removeprefix("note: ") for line in out.stdout.splitlines()]
+    assert [n for n in notes if n not in printed] == []
 
 
 def test_export_onnx_matches_the_numpy_policy(tmp_path: Path) -> None:

@@ -14,7 +14,15 @@ import mujoco
 import numpy as np
 import pytest
 
-from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, FaultRun, fault_suite, run_fault
+from constraint_aware.bench.faults import (
+    FAULTS,
+    QUICK_FAULTS,
+    FaultRun,
+    FaultyRobot,
+    fault_suite,
+    hook_hand_time_constant,
+    run_fault,
+)
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim import hand
@@ -56,6 +64,52 @@ def test_no_fault_makes_the_executor_dangerous(task: str, fault: str) -> None:
     if fault.startswith(("pose_glitch", "nan_pose")):
         # a single bad pose is not acted on: the run ends as the fault-free run does
         assert result.outcome == baseline(task).outcome, (task, fault, result.reason)
+
+
+#: the faults the executor's lag-aware guards (arm force, self-check) must still catch
+LAG_GUARD_FAULTS = {
+    "frozen": ("not_following",),
+    "frozen_10": ("not_following",),
+    "flipped_sign": ("sensor_convention",),
+    "rotated_90": ("sensor_convention", "force_limit"),
+    "lagging_pose": ("not_following",),
+}
+
+
+@pytest.mark.parametrize("fault", list(LAG_GUARD_FAULTS))
+@pytest.mark.parametrize("task", TASK_NAMES)
+def test_the_lag_model_still_catches_the_faults(task: str, fault: str) -> None:
+    """With the robot reporting its tracking_time_constant (c / k of the hook hand's arm), the
+    faults the arm-deflection guards catch are still caught, as without it."""
+    result = run_fault(task, fault, policy=POLICY, lag=hook_hand_time_constant)
+    assert result.classification == "safe_stop", (task, fault, result.outcome, result.reason)
+    assert result.outcome in LAG_GUARD_FAULTS[fault], (task, fault, result.reason)
+
+
+@pytest.mark.parametrize(
+    ("task", "offset", "stiffness"),
+    [
+        ("drawer-opening", 30.0, 500.0),
+        ("pole-pulling", -30.0, 500.0),
+        ("handle-rotating", 15.0, 8000.0),
+    ],
+)
+def test_a_lagging_or_stiff_hand_reporting_its_lag_is_not_stopped(
+    task: str, offset: float, stiffness: float
+) -> None:
+    """At 500 N/m the hook hand lags 1.5 steps (tau 0.15 s) and the quasi-static arm-force
+    check stopped it `not_following`; at 8000 N/m the handle's inertia pushed along the move
+    at the end of each period and the self-check stopped it `sensor_convention`."""
+
+    def wrap(sim: ManipulationSim) -> FaultyRobot:
+        return FaultyRobot(sim, "none", 0, hook_hand_time_constant(sim))
+
+    spec = RunSpec(
+        task, "policy", offset, overrides=(("hand__translational_stiffness", stiffness),)
+    )
+    record, _ = run(spec, policy=POLICY, wrap=wrap)  # type: ignore[arg-type]
+    assert record.outcome == "success", record.reason
+    assert any("with the lag model" in n for n in record.notes)
 
 
 def test_quick_suite_counts() -> None:

@@ -228,3 +228,31 @@ def test_readme_one_liner() -> None:
         "gym.make('constraint_aware/DoorOpening-v0', render_mode='rgb_array')"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=120)
+
+
+# --- another embodiment -----------------------------------------------------------------------
+def test_task_env_on_the_jaco_passes_check_env_and_repeats_with_its_seed() -> None:
+    from constraint_aware.sim.jaco import JacoSim
+
+    env = gym.make("constraint_aware/DrawerOpening-v0", robot="jaco", render_mode="rgb_array")
+    check_env(env.unwrapped)  # also calls render()
+    env.close()
+    kwargs: dict[str, Any] = {"robot": "jaco", "offset_deg": (10.0, 40.0), "sensor_noise": 0.3}
+    first = gym.make("constraint_aware/DrawerOpening-v0", **kwargs)
+    a = rollout(first, 3, 5)
+    assert isinstance(first.unwrapped.sim, JacoSim)  # type: ignore[attr-defined]
+    assert_same(a, rollout(gym.make("constraint_aware/DrawerOpening-v0", **kwargs), 3, 5))
+    c = rollout(gym.make("constraint_aware/DrawerOpening-v0", **kwargs), 4, 5)
+    assert not np.array_equal(a[0]["direction"], c[0]["direction"])
+
+
+@pytest.mark.parametrize(
+    ("robot", "message"),
+    [("nao", "valid names: hook-hand, jaco"), ("jaco:stiffness=5", "valid range"),
+     ("jaco:mass=2", "period, stiffness")],
+)  # fmt: skip
+def test_task_env_robot_is_validated_at_construction(robot: str, message: str) -> None:
+    from constraint_aware.errors import CapError
+
+    with pytest.raises(CapError, match=message):
+        gym.make("constraint_aware/DoorOpening-v0", robot=robot)

@@ -185,3 +185,16 @@ def test_headless_rendering_chooses_egl_only_when_rendering() -> None:
 def test_a_users_mujoco_gl_is_left_alone() -> None:
     words = render_probe("glfw")  # without a display: a clean error, and no second guess
     assert words == ["error", "glfw", "glfw"]
+
+
+@pytest.mark.parametrize("package", ["constraint_aware.bench", "constraint_aware.lfo"])
+def test_lazy_subpackage_exports_resolve_without_importing_mujoco(package: str) -> None:
+    code = (
+        f"import sys, importlib; m = importlib.import_module({package!r}); "
+        "before = 'mujoco' in sys.modules; [getattr(m, n) for n in m.__all__]; "
+        "print(before, len(m.__all__))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    before, n = out.stdout.split()
+    assert before == "False" and int(n) > 0

@@ -7,6 +7,7 @@ import math
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -286,3 +287,49 @@ def test_cap_lfo_bad_file_is_a_clear_error(tmp_path: Path) -> None:
     )  # fmt: skip
     assert out.returncode == 2
     assert "malformed JSON" in out.stderr
+
+
+def test_execute_on_another_robot_runs_that_embodiment(monkeypatch: pytest.MonkeyPatch) -> None:
+    import constraint_aware.lfo.execute as lfo_execute
+    from constraint_aware.sim.jaco import JacoSim
+
+    built: list[object] = []
+    real = lfo_execute.simulated_robot
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        built.append(real(*args, **kwargs))
+        return built[-1]
+
+    monkeypatch.setattr(lfo_execute, "simulated_robot", spy)
+    skill = infer_skill(load(ROOT / "examples" / "door_demo.json"))
+    record, info = lfo_execute.execute(skill, controller="projection", robot="jaco")
+    assert [type(s) for s in built] == [JacoSim]
+    assert record.label["robot"] == info["robot"] == "jaco"
+    assert record.steps  # the executor drove the arm (how far it got is the guards' business)
+
+
+def test_execute_unknown_robot_names_the_valid_ones() -> None:
+    from constraint_aware.errors import InvalidInputError, UnknownNameError
+    from constraint_aware.lfo.execute import execute
+
+    skill = infer_skill(load(ROOT / "examples" / "door_demo.json"))
+    with pytest.raises(UnknownNameError, match="hook-hand, jaco"):
+        execute(skill, robot="nao")
+    with pytest.raises(InvalidInputError, match="stiffness"):
+        execute(skill, robot="jaco:stiffness=1")
+
+
+def test_cap_lfo_execute_robot_flag() -> None:
+    demo = str(ROOT / "examples" / "door_demo.json")
+    out = subprocess.run(
+        [sys.executable, "-m", "constraint_aware.cli", "lfo", demo, "--execute",
+         "--robot", "jaco", "--json", "-"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert out.returncode in (0, 1), out.stderr  # 1: the run stopped (a guard), still recorded
+    assert json.loads(out.stdout)["execution"]["robot"] == "jaco"
+    out = subprocess.run(
+        [sys.executable, "-m", "constraint_aware.cli", "lfo", demo, "--execute", "--robot", "nao"],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert out.returncode == 2 and "hook-hand, jaco" in out.stderr

@@ -150,6 +150,19 @@ def _add_policy(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _add_robot(p: argparse.ArgumentParser, what: str) -> None:
+    from constraint_aware.sim.embodiment import DEFAULT_ROBOT, EMBODIMENTS, ROBOT_PARAMS
+
+    variants = ", ".join(f"{k} {lo:g}-{hi:g}" for k, (lo, hi) in ROBOT_PARAMS.items())
+    p.add_argument(
+        "--robot",
+        default=DEFAULT_ROBOT,
+        metavar="NAME[:KEY=VALUE,...]",
+        help=f"the embodiment {what}: {', '.join(EMBODIMENTS)}, optionally with variants "
+        f"({variants}), e.g. jaco:stiffness=5000,period=0.05",
+    )
+
+
 # --- cap train --------------------------------------------------------------------------------
 _TRAIN_ALIASES = {
     "total_timesteps": ("--steps",),
@@ -493,6 +506,7 @@ def _lfo_parser(p: argparse.ArgumentParser) -> None:
     p.add_argument("--grasp", choices=GRASP_TYPES, help="override the force-exertion type")
     p.add_argument("--controller", default="policy", choices=CONTROLLERS, help="for --execute")
     p.add_argument("--seed", type=int, default=0, help="for --execute")
+    _add_robot(p, "that executes the skill (--execute)")
     _add_policy(p)
     p.add_argument("--record", metavar="PATH", help="the execution's run record (.json)")
     p.set_defaults(func=cmd_lfo)
@@ -506,6 +520,10 @@ def cmd_lfo(args: argparse.Namespace) -> int:
     check_output(args.record, "--record", JSON_SUFFIXES, stdout=True)
     out_console = human(args)
     policy = None
+    if args.execute:
+        from constraint_aware.sim.embodiment import parse_robot
+
+        parse_robot(args.robot)  # before any work
     if args.execute and args.controller == "policy":
         from constraint_aware.policy import ConstraintAwarePolicy
 
@@ -518,7 +536,9 @@ def cmd_lfo(args: argparse.Namespace) -> int:
         from constraint_aware.lfo.execute import execute
 
         try:
-            record, info = execute(skill, controller=args.controller, seed=args.seed, policy=policy)
+            record, info = execute(
+                skill, controller=args.controller, seed=args.seed, policy=policy, robot=args.robot
+            )
         except BaseException as exc:  # write the attached record, as cap run does
             partial = getattr(exc, "run_record", None)
             if partial is None:
@@ -532,10 +552,12 @@ def cmd_lfo(args: argparse.Namespace) -> int:
         out["execution"] = {**info, **record.summary()}
         _print_outcome(
             out_console,
-            f"executed on {info['task']} with the {record.label['controller']} controller",
+            f"executed on {info['task']} by {info['robot']} with the "
+            f"{record.label['controller']} controller",
             record,
             f"initial-direction error vs the task {info['initial_direction_error_deg']:.1f} deg",
         )
+        _print_notes(info["notes"], out_console)  # what was assumed building the object
         if args.record:
             write_json(record.to_dict(), args.record)
     if args.json:
@@ -590,8 +612,14 @@ def _print_skill(skill: Any, out: Console) -> None:
     for key, value in rows:
         table.add_row(Text(key), Text(value))  # demo text is data, never markup
     out.print(table)
-    for w in skill.warnings:
-        out.print(Text.assemble(("note: ", "yellow"), w), soft_wrap=True)
+    _print_notes(skill.warnings, out)
+
+
+def _print_notes(notes: Sequence[str], out: Console) -> None:
+    """`note: ...` lines: the assumptions and disagreements (words vs geometry) that --json
+    holds as `skill.warnings` and `execution.notes`, in plain text."""
+    for note in notes:
+        out.print(Text.assemble(("note: ", "yellow"), note), soft_wrap=True)
 
 
 # --- cap bench --------------------------------------------------------------------------------
@@ -609,6 +637,8 @@ def _bench_parser(p: argparse.ArgumentParser) -> None:
         help="run the sweeps on a Dask cluster (the 'cluster' extra): a scheduler address "
         "(tcp://host:8786), or 'local' for a local cluster of --workers processes",
     )
+    _add_policy(p)
+    _add_robot(p, "of the paper's experiments, the suite and the maps")
     _add_json(p, "results.json's content")
     p.set_defaults(func=cmd_bench)
 
@@ -617,6 +647,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     import time
 
     from constraint_aware.bench.run import RESULTS, replot, run_bench
+    from constraint_aware.sim.embodiment import DEFAULT_ROBOT
 
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
     if args.workers is not None and args.workers < 1:
@@ -625,6 +656,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
         require_extra("distributed", "cluster", "--scheduler")
     start = time.perf_counter()
     if args.replot:
+        if args.policy is not None or args.robot != DEFAULT_ROBOT:
+            raise InvalidInputError("--replot redraws a finished bench: no --policy or --robot")
         report = replot(args.replot)
     else:
         report = run_bench(
@@ -633,6 +666,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
             workers=args.workers,
             force=args.force,
             scheduler=args.scheduler,
+            policy=args.policy,
+            robot=args.robot,
         )
     human(args).print(
         Text(

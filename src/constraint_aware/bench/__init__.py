@@ -1,0 +1,33 @@
+"""`cap bench`: the paper's experiments, the robustness maps, the embodiment, placement, policy
+and fault sections, as results.json, figures and report.md.
+
+`run_bench(out, quick=..., policy=..., robot=...)` runs it, `replot(out)` redraws from
+results.json. Names are resolved on first use, so importing this package imports no simulator.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_EXPORTS = {
+    "load_results": "run",
+    "policy_identity": "run",
+    "replot": "run",
+    "run_bench": "run",
+    "BenchConfig": "experiments",
+    "PolicySection": "analysis",
+    "policy_section": "analysis",
+    "EmbodimentResults": "embodiment",
+    "embodiment_experiments": "embodiment",
+    "FaultSuite": "faults",
+    "fault_suite": "faults",
+    "run_many": "sweep",
+}
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'constraint_aware.bench' has no attribute {name!r}")
+    return getattr(importlib.import_module(f"constraint_aware.bench.{_EXPORTS[name]}"), name)

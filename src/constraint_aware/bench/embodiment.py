@@ -25,6 +25,7 @@ import numpy as np
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.errors import UnknownNameError
+from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.embodiment import EMBODIMENTS
 from constraint_aware.sim.robot_adapter import FILTER_STEPS, RAMP_CHUNKS, TIMESTEP
 from constraint_aware.sim.tasks import TASKS
@@ -117,12 +118,14 @@ def _cell(
 
 
 def _run_all(
-    specs: Sequence[RunSpec], executor_overrides: dict[str, object] | None = None
+    specs: Sequence[RunSpec],
+    executor_overrides: dict[str, object] | None = None,
+    policy: ConstraintAwarePolicy | None = None,
 ) -> list[tuple[RunSpec, dict[str, Any]]]:
     """One process, in order (the bench's other experiments own the process pool)."""
     out = []
     for spec in specs:
-        record, _ = run(spec, executor_overrides=executor_overrides)
+        record, _ = run(spec, policy=policy, executor_overrides=executor_overrides)
         out.append((spec, record.summary()))
     return out
 
@@ -146,9 +149,12 @@ def paper_specs(robot: str, controllers: Sequence[str] = CONTROLLERS) -> list[Ru
     ]
 
 
-def for_bench(quick: bool, seeds: int) -> EmbodimentResults:
+def for_bench(
+    quick: bool, seeds: int, policy: ConstraintAwarePolicy | None = None
+) -> EmbodimentResults:
     """`cap bench`'s share: quick = the paper's conditions on the arm with the policy and the
-    classical controller (12 runs); full = everything with `seeds` suite seeds."""
+    classical controller (12 runs); full = everything with `seeds` suite seeds. `policy`: the
+    bench's policy (None: the shipped default)."""
     if quick:
         return embodiment_experiments(
             seeds=0,
@@ -156,8 +162,9 @@ def for_bench(quick: bool, seeds: int) -> EmbodimentResults:
             controllers=("policy", "classical"),
             variants=False,
             low_threshold=False,
+            policy=policy,
         )
-    return embodiment_experiments(seeds=seeds)
+    return embodiment_experiments(seeds=seeds, policy=policy)
 
 
 def embodiment_experiments(
@@ -169,10 +176,12 @@ def embodiment_experiments(
     low_threshold: bool = True,
     variant_controllers: Sequence[str] = ("policy", "classical"),
     paper: bool = True,
+    policy: ConstraintAwarePolicy | None = None,
 ) -> EmbodimentResults:
     """The transfer suite (`seeds` per task; 0 skips it), (paper) the paper's conditions at the
     executor's default dead band (and at `LOW_THRESHOLD` if `low_threshold`), and (variants)
-    the stiffness and period variants with `variant_controllers`, on every robot."""
+    the stiffness and period variants with `variant_controllers`, on every robot; the policy
+    controller runs `policy` (None: the shipped default)."""
     start = time.perf_counter()
     for robot in robots:
         if robot not in EMBODIMENTS:
@@ -183,23 +192,25 @@ def embodiment_experiments(
             specs = [
                 dataclasses.replace(s, robot=robot) for s in suite_specs(seeds, controllers, tasks)
             ]
-            res.transfer += _grouped(_run_all(specs))
+            res.transfer += _grouped(_run_all(specs, policy=policy))
         conditions = [s for s in paper_specs(robot, controllers) if s.task in tasks]
         if paper:
-            res.paper += _grouped(_run_all(conditions), "threshold", None)
+            res.paper += _grouped(_run_all(conditions, policy=policy), "threshold", None)
         if paper and low_threshold:
             res.paper += _grouped(
-                _run_all(conditions, {"threshold": LOW_THRESHOLD}), "threshold", LOW_THRESHOLD
+                _run_all(conditions, {"threshold": LOW_THRESHOLD}, policy),
+                "threshold",
+                LOW_THRESHOLD,
             )
         if not variants:
             continue
         base = [s for s in conditions if s.controller in variant_controllers]
         for k in STIFFNESS_LEVELS:
             specs = [dataclasses.replace(s, robot=f"{robot}:stiffness={k:g}") for s in base]
-            res.variants += _grouped(_run_all(specs), "stiffness", k)
+            res.variants += _grouped(_run_all(specs, policy=policy), "stiffness", k)
         for p in PERIOD_LEVELS:
             specs = [dataclasses.replace(s, robot=f"{robot}:period={p:g}") for s in base]
-            res.variants += _grouped(_run_all(specs), "period", p)
+            res.variants += _grouped(_run_all(specs, policy=policy), "period", p)
     res.simulated_period_s = {f"{p:g}": simulated_period(p) for p in PERIOD_LEVELS}
     res.wall_time_s = time.perf_counter() - start
     return res

@@ -16,7 +16,9 @@ import numpy as np
 
 from constraint_aware.bench.sweep import PAPER_OFFSETS, run_many, success_table, suite_specs
 from constraint_aware.control.simulate import RunSpec, run
-from constraint_aware.policy import ConstraintAwarePolicy, shipped_log_path
+from constraint_aware.errors import UnknownNameError
+from constraint_aware.policy import POLICY_NAMES, ConstraintAwarePolicy, shipped_log_path
+from constraint_aware.sim.embodiment import DEFAULT_ROBOT, ROBOT_PARAMS, parse_robot
 from constraint_aware.sim.tasks import TASKS
 
 CONTROLLERS = ("policy", "classical", "projection", "fixed")
@@ -33,21 +35,59 @@ class BenchConfig:
     heatmap_seeds: int = 3
     sensitivity_seeds: int = 3
     render: bool = True  # snapshots of the paper's drawer scenes
+    robot: str = DEFAULT_ROBOT  # embodiment of the paper's experiments, the suite, the offset
+    # map and the sensitivity: a robot spec (sim.embodiment), e.g. "jaco:stiffness=5000"
+
+    def __post_init__(self) -> None:
+        parse_robot(self.robot)  # an unknown embodiment or variant names the valid ones
 
     @classmethod
-    def for_mode(cls, quick: bool, workers: int | None = None) -> BenchConfig:
+    def for_mode(
+        cls, quick: bool, workers: int | None = None, robot: str = DEFAULT_ROBOT
+    ) -> BenchConfig:
         if quick:
-            return cls(quick=True, workers=workers, suite_seeds=3)
-        return cls(workers=workers)
+            return cls(quick=True, workers=workers, suite_seeds=3, robot=robot)
+        return cls(workers=workers, robot=robot)
+
+    def on_robot(self, spec: RunSpec) -> RunSpec:
+        """`spec` on this bench's robot."""
+        return spec if spec.robot == self.robot else dataclasses.replace(spec, robot=self.robot)
+
+
+def robot_variant(robot: str, **params: float) -> str:
+    """The robot spec `robot` with variant parameters set (`ROBOT_PARAMS` keys), as text:
+    robot_variant("jaco:period=0.05", stiffness=500) == "jaco:stiffness=500,period=0.05"."""
+    spec = parse_robot(robot)
+    for key in params:
+        if key not in ROBOT_PARAMS:
+            raise UnknownNameError("robot parameter", key, list(ROBOT_PARAMS))
+    values = {k: params.get(k, getattr(spec, k)) for k in ROBOT_PARAMS}
+    items = [f"{k}={v:g}" for k, v in values.items() if v is not None]
+    text = spec.name + (":" + ",".join(items) if items else "")
+    parse_robot(text)  # the new values' ranges
+    return text
+
+
+def training_log_path(source: str | Path | None, policy: ConstraintAwarePolicy) -> Path | None:
+    """The training log of the policy loaded from `source`: the one shipped beside a named
+    policy, or `training_log.csv` beside a policy file (where `cap train` writes it); None
+    when there is none."""
+    if source is None or (isinstance(source, str) and source in POLICY_NAMES):
+        return shipped_log_path(str(source or policy.name))
+    log = Path(source).parent / "training_log.csv"
+    return log if log.is_file() else None
 
 
 # --- 1. learning curve --------------------------------------------------------------------
-def learning(out: Path) -> dict[str, Any]:
-    """The shipped policy's training log and card metrics (nothing is run)."""
-    policy = ConstraintAwarePolicy.load()
-    log_src = shipped_log_path(policy.name)
+def learning(
+    out: Path, policy: ConstraintAwarePolicy | None = None, source: str | Path | None = None
+) -> dict[str, Any]:
+    """The bench policy's training log and card metrics (nothing is run). `policy` was loaded
+    from `source` (a shipped name or a file; None: the shipped default)."""
+    policy = policy or ConstraintAwarePolicy.load(source)
+    log_src = training_log_path(source, policy)
     log_dst = out / "training_log.csv"
-    log_dst.write_text(log_src.read_text())
+    log_dst.write_text(log_src.read_text() if log_src is not None else "")
     with log_dst.open() as fh:
         rows = list(csv.DictReader(fh))
     metrics = policy.metrics
@@ -63,6 +103,7 @@ def learning(out: Path) -> dict[str, Any]:
         "p95_final_angle_deg": {k: v["p95_final_angle_deg"] for k, v in metrics.items()},
         "episodes": metrics.get("policy", {}).get("episodes"),
         "policy": policy.name,
+        "has_log": log_src is not None,
         "observation_study": card.get("observation_study"),
     }
 
@@ -93,20 +134,31 @@ PAPER_RUNS: dict[str, RunSpec] = {
         "handle-rotating", "policy", 15.0, torque_policy=False
     ),
 }
-#: Runs of the paper's policy (`load("paper")`); every other policy run uses the default.
+#: Runs of the paper's policy (`load("paper")`); every other policy run uses the bench's.
 PAPER_POLICY_RUNS = frozenset({"appendix_handle_paper_policy_without_torque_policy"})
 FIG6 = ("fig6_drawer_+30_policy", "fig6_drawer_-30_policy")
 FIG11 = "fig6_drawer_-30_policy"  # |F| over time (paper fig. 11 is drawer-opening)
 FIG12 = "fig9_door_policy"  # the door's trajectory with d and F arrows
 
 
-def paper_experiments(out: Path, render: bool = True) -> dict[str, Any]:
-    """Run the paper's conditions once each; save every record and the drawer snapshots."""
+def paper_specs(robot: str = DEFAULT_ROBOT) -> dict[str, RunSpec]:
+    """`PAPER_RUNS` on `robot` (a robot spec)."""
+    return {name: dataclasses.replace(spec, robot=robot) for name, spec in PAPER_RUNS.items()}
+
+
+def paper_experiments(
+    out: Path,
+    render: bool = True,
+    policy: ConstraintAwarePolicy | None = None,
+    robot: str = DEFAULT_ROBOT,
+) -> dict[str, Any]:
+    """Run the paper's conditions once each on `robot` with `policy` (None: the shipped
+    default; `PAPER_POLICY_RUNS` keep the paper's); save every record and the drawer snapshots."""
     records_dir = out / "records"
     results: dict[str, Any] = {}
-    for name, spec in PAPER_RUNS.items():
-        paper_policy = ConstraintAwarePolicy.load("paper") if name in PAPER_POLICY_RUNS else None
-        record, sim = run(spec, policy=paper_policy)
+    for name, spec in paper_specs(robot).items():
+        chosen = ConstraintAwarePolicy.load("paper") if name in PAPER_POLICY_RUNS else policy
+        record, sim = run(spec, policy=chosen)
         record.save(records_dir / f"{name}.json")
         summary = record.summary()
         angles = np.array(record.angles)
@@ -127,22 +179,36 @@ def paper_experiments(out: Path, render: bool = True) -> dict[str, Any]:
 
 
 # --- headline: the randomized suite ---------------------------------------------------------
-def headline(cfg: BenchConfig) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    specs = suite_specs(cfg.suite_seeds, CONTROLLERS)
-    runs = run_many(specs, cfg.workers, label="suite (5 tasks x 4 controllers)")
+def headline_specs(cfg: BenchConfig) -> list[RunSpec]:
+    """The randomized suite (bench.sweep.suite_specs) on the bench's robot."""
+    return [cfg.on_robot(s) for s in suite_specs(cfg.suite_seeds, CONTROLLERS)]
+
+
+def headline(
+    cfg: BenchConfig, policy: ConstraintAwarePolicy | None = None
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    runs = run_many(
+        headline_specs(cfg), cfg.workers, label="suite (5 tasks x 4 controllers)", policy=policy
+    )
     return success_table(runs), runs
 
 
 # --- beyond: offsets, sensitivity ------------------------------------------------------------
-def offset_heatmap(cfg: BenchConfig) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    specs = [
-        RunSpec(task, ctrl, off, seed=seed)
+def heatmap_specs(cfg: BenchConfig) -> list[RunSpec]:
+    """Every task, controller, offset and seed of the offset map, on the bench's robot."""
+    return [
+        RunSpec(task, ctrl, off, seed=seed, robot=cfg.robot)
         for task in TASKS
         for ctrl in CONTROLLERS
         for off in cfg.heatmap_offsets
         for seed in range(cfg.heatmap_seeds)
     ]
-    runs = run_many(specs, cfg.workers, label="offset map")
+
+
+def offset_heatmap(
+    cfg: BenchConfig, policy: ConstraintAwarePolicy | None = None
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    runs = run_many(heatmap_specs(cfg), cfg.workers, label="offset map", policy=policy)
     grid: dict[str, dict[str, list[float]]] = {}
     peak: dict[str, dict[str, list[float]]] = {}
     for task in TASKS:
@@ -175,9 +241,11 @@ class Factor:
     levels: tuple[float, ...]
     tasks: tuple[str, ...]
 
-    def spec(self, task: str, ctrl: str, level: float, seed: int) -> RunSpec:
+    def spec(
+        self, task: str, ctrl: str, level: float, seed: int, robot: str = DEFAULT_ROBOT
+    ) -> RunSpec:
         offset = PAPER_OFFSETS[task][0]
-        base = RunSpec(task, ctrl, offset, seed=seed)
+        base = RunSpec(task, ctrl, offset, seed=seed, robot=robot)
         if self.name == "joint friction x":
             return dataclasses.replace(base, overrides=(("object__frictionloss", level),))
         if self.name == "object mass x":
@@ -189,8 +257,10 @@ class Factor:
         if self.name == "sensor bias":
             b = level / np.sqrt(3.0)
             return dataclasses.replace(base, sensor_bias=(b, b, b))
-        if self.name == "wrist stiffness":
+        if self.name == "wrist stiffness" and robot == DEFAULT_ROBOT:
             return dataclasses.replace(base, overrides=(("hand__translational_stiffness", level),))
+        if self.name == "wrist stiffness":  # the arm's own Cartesian stiffness (its variant)
+            return dataclasses.replace(base, robot=robot_variant(robot, stiffness=level))
         raise KeyError(self.name)
 
 
@@ -218,18 +288,27 @@ def _scaled(factor: Factor, task: str, level: float) -> float:
     return level
 
 
-def sensitivity(cfg: BenchConfig) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """Each factor's levels on its tasks. Results are matched to their cells by the run's own
-    spec (a spec may serve several cells, e.g. the preset), never by the order of the runs."""
+def sensitivity_cells(cfg: BenchConfig) -> dict[RunSpec, list[tuple[str, str, str, float]]]:
+    """Each run of the sensitivity (on the bench's robot) and the cells it serves: (factor,
+    task, controller, level)."""
     cells: dict[RunSpec, list[tuple[str, str, str, float]]] = {}
     for f in FACTORS:
         for task in f.tasks:
             for ctrl in CONTROLLERS:
                 for level in f.levels:
                     for seed in range(cfg.sensitivity_seeds):
-                        s = f.spec(task, ctrl, _scaled(f, task, level), seed)
+                        s = f.spec(task, ctrl, _scaled(f, task, level), seed, cfg.robot)
                         cells.setdefault(s, []).append((f.name, task, ctrl, level))
-    runs = run_many(list(cells), cfg.workers, label="sensitivity")
+    return cells
+
+
+def sensitivity(
+    cfg: BenchConfig, policy: ConstraintAwarePolicy | None = None
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Each factor's levels on its tasks. Results are matched to their cells by the run's own
+    spec (a spec may serve several cells, e.g. the preset), never by the order of the runs."""
+    cells = sensitivity_cells(cfg)
+    runs = run_many(list(cells), cfg.workers, label="sensitivity", policy=policy)
     rows: dict[tuple[str, str, str, float], list[dict[str, Any]]] = {}
     for r in runs:
         for key in cells[RunSpec(**r["spec"])]:
@@ -268,6 +347,7 @@ def worst_cases(
                 "task": s["task"],
                 "offset_deg": s["offset_deg"],
                 "seed": s["seed"],
+                "robot": spec["robot"],
                 "outcome": s["outcome"],
                 "reason": s["reason"],
                 "peak_force_N": s["peak_force_N"],

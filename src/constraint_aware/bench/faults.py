@@ -20,7 +20,7 @@ so an injected spike does not count as a real force. Runs use the default policy
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -66,13 +66,33 @@ QUICK_FAULTS = ("nan_pose", "pose_glitch_50cm", "frozen_10", "spike_200N", "flip
 CLASSES = ("safe_stop", "continued", "dangerous")
 
 
-class FaultyRobot:
-    """Forwards the Robot protocol to the simulator, injecting `fault` and watching."""
+def hook_hand_time_constant(sim: ManipulationSim) -> float:
+    """[s] c / k of the hook hand's translational arm joints (sim/hand.py's damping rule:
+    4 sqrt(m / k) at damping ratio 2; 0.153 s at 500 N/m, 0.076 s at 2000 N/m, 0.024 s at
+    20,000 N/m), for measurements on a simulator that does not report its
+    `tracking_time_constant` itself."""
+    hand = sim.task.hand
+    k = hand.translational_stiffness
+    return hand.arm_damping(hand.moving_mass, k) / k
 
-    def __init__(self, sim: ManipulationSim, fault: str, hold_periods: int) -> None:
+
+class FaultyRobot:
+    """Forwards the Robot protocol to the simulator, injecting `fault` and watching.
+
+    `tracking_time_constant`: reported instead of the simulator's own (None: the
+    simulator's, when it has one)."""
+
+    def __init__(
+        self,
+        sim: ManipulationSim,
+        fault: str,
+        hold_periods: int,
+        tracking_time_constant: float | None = None,
+    ) -> None:
         if fault not in FAULTS and fault != "none":
             raise UnknownNameError("fault", fault, [*FAULTS, "none"])
         self.sim = sim
+        self._tau = tracking_time_constant
         self.fault = fault
         self.hold_periods = hold_periods  # periods the executor holds for F_d
         self.periods = 0  # advance() calls
@@ -116,6 +136,15 @@ class FaultyRobot:
     @property
     def translational_stiffness(self) -> float:
         return self.sim.translational_stiffness
+
+    @property
+    def tracking_time_constant(self) -> object:
+        """[s] the simulated robot's, when it reports one (AttributeError otherwise, so the
+        executor's optional lookup sees no member); the executor validates it."""
+        if self._tau is not None:
+            return self._tau
+        member = "tracking_time_constant"  # optional Robot member: not on every simulator
+        return getattr(self.sim, member)
 
     def read_wrench(self) -> Wrench:
         w = self.sim.read_wrench()
@@ -227,13 +256,17 @@ def run_fault(
     offset_deg: float = 15.0,
     seed: int = 0,
     policy: ConstraintAwarePolicy | None = None,
+    lag: Callable[[ManipulationSim], float] | None = None,
 ) -> FaultRun:
-    """One run of the policy on `task` with `fault` injected; classified (module docstring)."""
+    """One run of the policy on `task` with `fault` injected; classified (module docstring).
+    lag: the robot reports lag(sim) as its `tracking_time_constant` [s] (None: whatever the
+    simulator reports)."""
     hold_periods = ExecutorConfig().offset_samples - 1
     robots: list[FaultyRobot] = []
 
     def wrap(sim: Any) -> FaultyRobot:
-        robots.append(FaultyRobot(sim, fault, hold_periods))
+        tau = lag(sim) if lag is not None else None
+        robots.append(FaultyRobot(sim, fault, hold_periods, tau))
         return robots[-1]
 
     spec = RunSpec(task=task, controller="policy", offset_deg=offset_deg, seed=seed)
@@ -297,11 +330,13 @@ def fault_suite(
     offsets: Sequence[float] = (15.0,),
     seeds: Sequence[int] = (0,),
     policy: ConstraintAwarePolicy | None = None,
+    lag: Callable[[ManipulationSim], float] | None = None,
 ) -> FaultSuite:
-    """Every fault on every task (and offset, seed), with the default policy."""
+    """Every fault on every task (and offset, seed), with the default policy (`lag`: as in
+    `run_fault`)."""
     pol = policy or ConstraintAwarePolicy.load()
     runs = [
-        run_fault(task, fault, off, seed, pol)
+        run_fault(task, fault, off, seed, pol, lag)
         for task in tasks
         for fault in faults
         for off in offsets

@@ -234,10 +234,11 @@ def run_placement(
 BENCH_PER_KIND = {False: 4, True: 1}
 
 
-def bench_section(quick: bool) -> dict[str, Any]:
-    """The placement experiment as `cap bench` runs it (benchmarks/placement.py runs more)."""
+def bench_section(quick: bool, policy: ConstraintAwarePolicy | None = None) -> dict[str, Any]:
+    """The placement experiment as `cap bench` runs it (benchmarks/placement.py runs more),
+    with the bench's policy (None: the shipped default)."""
     controllers = ("policy",) if quick else ("policy", "classical")
-    out = run_placement(BENCH_PER_KIND[quick], controllers).to_dict()
+    out = run_placement(BENCH_PER_KIND[quick], controllers, policy=policy).to_dict()
     # what the report's prose states, so that every number shown is in results.json
     out["noise_mm"] = NOISE * 1000.0
     out["radius_range_m"] = list(RADIUS_RANGE)

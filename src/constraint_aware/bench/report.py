@@ -35,6 +35,30 @@ def _outcome_row(name: str, s: dict[str, Any]) -> str:
     )
 
 
+def _count(x: int | None) -> str:
+    return "n/a" if x is None else f"{x:,}"
+
+
+def _policy_and_robot(meta: dict[str, Any]) -> str:
+    """The header's policy and robot line (absent from results written before they were
+    recorded: then nothing)."""
+    pol = meta.get("policy")
+    if not pol:
+        return ""
+    robot = meta.get("robot", "hook-hand")
+    return (
+        f"Policy: `{pol['name']}` "
+        + ("(shipped; " if pol["shipped"] else f"from `{pol['source']}` (")
+        + f"observation `{pol['observation']}`; "
+        f"card sha256 `{pol['card_sha256'][:16]}`, weights sha256 "
+        f"`{pol['weights_sha256'][:16]}`), in every run of the policy controller except the "
+        "policy section's named comparison and the paper-policy appendix run. Robot: "
+        f"`{robot}` for the paper's experiments, the randomized suite, the offset map and the "
+        "sensitivity; the embodiment section compares its own robots and the placement, policy "
+        "and fault sections run on the hook hand.\n"
+    )
+
+
 def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) -> Path:
     meta = results["meta"]
     figs = meta["paper_figures"]
@@ -48,16 +72,22 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
         "Every number below is read from `results.json` in this folder; every figure is "
         "redrawn from it by `cap bench --replot DIR`.\n"
     )
+    header = _policy_and_robot(meta)
+    if header:
+        add(header)
 
     # 1. learning
     le = results["learning"]
     fa = le["final_angle_deg"]
-    add("## Training: the shipped policy\n")
+    add(f"## Training: the bench's policy (`{le['policy']}`)\n")
     add(f"![learning curve]({figures['learning']})\n")
+    if not le.get("has_log", True):
+        add("No training log was found beside the policy file: the curve shows none.\n")
     add(
-        f"Preset `{le['preset']}`, {le['total_timesteps']:,} env steps (best checkpoint at "
-        f"{le['best_timesteps']:,}), {_f(le['wall_time_s'], 0)} s. Mean angle between d and the "
-        f"joint axis after the 5th action, over {le['episodes']:,} evaluation episodes:\n"
+        f"Preset `{le['preset']}`, {_count(le['total_timesteps'])} env steps (best checkpoint at "
+        f"{_count(le['best_timesteps'])}), {_f(le['wall_time_s'], 0)} s. Mean angle between d "
+        f"and the joint axis after the 5th action, over {_count(le['episodes'])} evaluation "
+        "episodes:\n"
     )
     add("| controller | mean [deg] | p95 [deg] |\n|---|---|---|")
     for name, value in fa.items():
@@ -139,6 +169,7 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
     head = results["headline"]
     add("## Headline: randomized suite\n")
     add(
+        f"On `{meta.get('robot', 'hook-hand')}`. "
         f"{head['seeds']} seeds per task and controller; friction, mass and damping scaled by "
         f"U({_f(meta['randomization']['scale'][0])}, {_f(meta['randomization']['scale'][1])}), "
         f"offsets uniform in ±{_f(meta['randomization']['prismatic_offset_deg'], 0)} deg "
@@ -193,7 +224,7 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
             add(f"| {name} [{entry['unit']}] | {levels} | " + " | ".join(cells) + " |")
         add("")
     if "embodiment" in results:
-        lines += _embodiment_section(results["embodiment"])
+        lines += _embodiment_section(results["embodiment"], results["learning"]["policy"])
     if "placement" in results:
         lines.extend(placement_report_lines(results["placement"]))
     if results.get("worst_cases"):
@@ -210,6 +241,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
             if any(w["sensor_bias_N"]):
                 cond += f", bias {_f(w['sensor_bias_magnitude_N'], 2)} N"
             cond += f", noise {_f(w['sensor_noise_N'], 2)} N"
+            if w.get("robot", "hook-hand") != "hook-hand":
+                cond += f", robot `{w['robot']}`"
             add(
                 f"| {w['task']} | {_f(w['offset_deg'], 1)} | {w['seed']} | {w['outcome']} | "
                 f"{_f(w['peak_force_N'])} | {cond} |"
@@ -218,7 +251,7 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
     if "policy_section" in results:
         lines.extend(policy_section_lines(PolicySection.from_dict(results["policy_section"])))
     if results.get("faults"):
-        _faults_section(add, results["faults"])
+        _faults_section(add, results["faults"], results["learning"]["policy"])
     path = out / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path
@@ -291,15 +324,15 @@ def _embodiment_cells(rows: list[dict[str, Any]], robots: list[str], ctrls: list
     return out
 
 
-def _embodiment_section(emb: dict[str, Any]) -> list[str]:
+def _embodiment_section(emb: dict[str, Any], policy: str = "default") -> list[str]:
     robots, ctrls = emb["robots"], emb["controllers"]
     out = [
         "## Embodiments: the same controllers on the hook hand and on a Kinova Jaco arm\n",
         "Embodiment 1 is the hook hand on virtual Cartesian joints; embodiment 2 the Kinova Jaco "
         "arm and 3-finger hand (dm-control's models) under an operational-space impedance "
-        "controller. The policy is the shipped one and the classical gains are those tuned on "
-        "embodiment 1's drawer; nothing is retuned. Cells: successes / runs, median peak |F|, "
-        "median mean |F| [N].\n",
+        f"controller. The policy is the bench's (`{policy}`) and the classical gains are those "
+        "tuned on embodiment 1's drawer; nothing is retuned. Cells: successes / runs, median "
+        "peak |F|, median mean |F| [N].\n",
     ]
     if emb["transfer"]:
         out.append(f"Randomized suite, {emb['seeds']} seeds per task and controller:\n")
@@ -342,12 +375,12 @@ def _embodiment_section(emb: dict[str, Any]) -> list[str]:
     return out
 
 
-def _faults_section(add: Any, faults: dict[str, Any]) -> None:
+def _faults_section(add: Any, faults: dict[str, Any], policy: str) -> None:
     """Fault injection (bench/faults.py): counts per fault and class."""
     c = faults["counts"]
     add("## Fault injection: the executor under robot and sensor faults\n")
     add(
-        f"The default policy on each task with one fault injected after "
+        f"The bench's policy (`{policy}`) on each task (hook hand) with one fault injected after "
         f"{faults['onset_moves']} moves (sensor conventions: from the start). Dangerous: a "
         f"non-finite or oversized command, a true |F| above {faults['force_limit_factor']} x "
         "the limit, success above the limit, no record, a stop without a reason, no hold "

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import json
 import math
 import time
@@ -24,6 +26,8 @@ from constraint_aware.bench.sweep import (
     use_executor,
 )
 from constraint_aware.errors import CapError
+from constraint_aware.policy import POLICY_NAMES, ConstraintAwarePolicy
+from constraint_aware.sim.embodiment import DEFAULT_ROBOT
 from constraint_aware.sim.tasks import TASKS, task_config
 
 RESULTS = "results.json"
@@ -111,33 +115,70 @@ def check_out_dir(out_dir: Path, force: bool = False) -> None:
         )
 
 
+def policy_identity(policy: ConstraintAwarePolicy, source: str | Path | None) -> dict[str, Any]:
+    """What identifies the policy a bench ran: its card's name, where it was loaded from, and
+    SHA-256 digests of its card (canonical JSON) and of its weights (float64 bytes, layer by
+    layer), so two results can be told apart even when two files share a name."""
+    card = json.dumps(policy.card, sort_keys=True, separators=(",", ":")).encode()
+    weights = hashlib.sha256()
+    for w, b in policy.layers:
+        weights.update(w.astype("<f8").tobytes())
+        weights.update(b.astype("<f8").tobytes())
+    shipped = source is None or (isinstance(source, str) and source in POLICY_NAMES)
+    return {
+        "name": policy.name,
+        "source": str(source) if source is not None else policy.name,
+        "shipped": shipped,
+        "observation": policy.observation,
+        "card_sha256": hashlib.sha256(card).hexdigest(),
+        "weights_sha256": weights.hexdigest(),
+    }
+
+
 def run_bench(
     out: str | Path,
     quick: bool = False,
     workers: int | None = None,
     force: bool = False,
     scheduler: str | None = None,
+    policy: str | Path | None = None,
+    robot: str = DEFAULT_ROBOT,
 ) -> Path:
     """Run everything (quick: the paper's experiments with few seeds) into `out`.
 
+    policy: a shipped policy's name (`policy.POLICY_NAMES`) or a policy .npz; every run of
+    the policy controller uses it (None: the shipped default), except the policy section's
+    named comparison (paper vs default) and the paper-policy appendix run. An unknown name
+    raises UnknownNameError listing the valid ones, a bad file PolicyFileError.
+    robot: the embodiment (a robot spec, sim.embodiment) of the paper's experiments, the
+    suite, the offset map and the sensitivity; the embodiment section keeps comparing the hook
+    hand with the Jaco, and the placement, policy and fault sections run on the hook hand.
     `out` must be new, empty or a previous bench's directory unless `force` (CapError).
     scheduler: a Dask scheduler's address, or "local" for a cluster of `workers` processes on
     this machine; the sweeps' runs then go to that cluster (through its client's executor) and
     `workers` is its thread count. The results do not depend on it.
+    Everything is validated before any run or connection.
     """
-    check_out_dir(Path(out), force)  # before any run or connection
+    loaded = ConstraintAwarePolicy.load(policy)
+    cfg = ex.BenchConfig.for_mode(quick, workers, robot)
+    check_out_dir(Path(out), force)
     if scheduler is None:
-        return _run_bench(out, quick, workers)
+        return _run_bench(out, cfg, loaded, policy)
     with (
         dask_executor(scheduler, local_workers=workers) as (executor, threads),
         use_executor(executor),
     ):
-        return _run_bench(out, quick, threads)
+        return _run_bench(out, dataclasses.replace(cfg, workers=threads), loaded, policy)
 
 
-def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
+def _run_bench(
+    out: str | Path,
+    cfg: ex.BenchConfig,
+    policy: ConstraintAwarePolicy,
+    source: str | Path | None,
+) -> Path:
     start = time.perf_counter()
-    cfg = ex.BenchConfig.for_mode(quick, workers)
+    quick = cfg.quick
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {
@@ -147,6 +188,8 @@ def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
             "n_tasks": len(TASKS),
             "n_controllers": len(ex.CONTROLLERS),
             "controllers": list(ex.CONTROLLERS),
+            "policy": policy_identity(policy, source),
+            "robot": cfg.robot,
             "force_limit_N": task_config("drawer-opening").force_limit,
             "paper_figures": {
                 "drawer": 6,
@@ -162,9 +205,11 @@ def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
             },
         }
     }
-    results["learning"] = ex.learning(out_dir)
-    results["paper"] = _summaries_with_units(ex.paper_experiments(out_dir, cfg.render))
-    table, suite_runs = ex.headline(cfg)
+    results["learning"] = ex.learning(out_dir, policy, source)
+    results["paper"] = _summaries_with_units(
+        ex.paper_experiments(out_dir, cfg.render, policy, cfg.robot)
+    )
+    table, suite_runs = ex.headline(cfg, policy)
     for row in table.values():
         for cell in row.values():
             cell["successes"] = round(cell["success_rate"] * cell["n"])
@@ -173,20 +218,22 @@ def _run_bench(out: str | Path, quick: bool, workers: int | None) -> Path:
         "table": table,
         "peak_force_samples": ex.peak_force_samples(suite_runs),
     }
-    results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds).to_dict()
+    results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds, policy).to_dict()
     all_runs = list(suite_runs)
-    results["placement"] = placement.bench_section(quick)
+    results["placement"] = placement.bench_section(quick, policy)
     if not quick:
-        heatmap, hm_runs = ex.offset_heatmap(cfg)
+        heatmap, hm_runs = ex.offset_heatmap(cfg, policy)
         heatmap["full_success_halfwidth_deg"] = _full_success_halfwidth(heatmap)
         results["heatmap"] = heatmap
-        sens, sens_runs = ex.sensitivity(cfg)
+        sens, sens_runs = ex.sensitivity(cfg, policy)
         _first_failures(sens)
         results["sensitivity"] = sens
         all_runs += hm_runs + sens_runs
     results["policy_section"] = policy_section(quick).to_dict()
     results["faults"] = fault_suite(
-        FAULT_BENCH_TASKS_QUICK if quick else tuple(TASKS), QUICK_FAULTS if quick else tuple(FAULTS)
+        FAULT_BENCH_TASKS_QUICK if quick else tuple(TASKS),
+        QUICK_FAULTS if quick else tuple(FAULTS),
+        policy=policy,
     ).to_dict()
     worst = ex.worst_cases(all_runs)
     for w in worst:

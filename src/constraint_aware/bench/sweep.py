@@ -22,6 +22,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.errors import CapError
+from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.tasks import TASKS, task_config
 
 T = TypeVar("T")
@@ -60,9 +61,9 @@ def suite_specs(
     return specs
 
 
-def _run_one(args: tuple[RunSpec, bool]) -> dict[str, Any]:
-    spec, keep_steps = args
-    record, _ = run(spec)
+def _run_one(args: tuple[RunSpec, bool, ConstraintAwarePolicy | None]) -> dict[str, Any]:
+    spec, keep_steps, policy = args
+    record, _ = run(spec, policy=policy)
     out: dict[str, Any] = {"spec": dataclasses.asdict(spec), "summary": record.summary()}
     if keep_steps:
         out["angles_deg"] = record.angles
@@ -173,14 +174,16 @@ def run_many(
     label: str = "runs",
     quiet: bool = False,
     executor: Executor | None = None,
+    policy: ConstraintAwarePolicy | None = None,
 ) -> list[dict[str, Any]]:
-    """Run every spec; results keep the input order.
+    """Run every spec; results keep the input order. `policy` drives every spec whose
+    controller is "policy" (None: the shipped default); it travels to the workers with each run.
 
     On `executor` if given, else on the one set by `use_executor`, else in a local process pool
     of `workers` processes (default: `default_workers`); one worker runs them in this process.
     """
     executor = executor or _CURRENT_EXECUTOR.get()
-    jobs = [(s, keep_steps) for s in specs]
+    jobs = [(s, keep_steps, policy) for s in specs]
     with Progress(
         TextColumn(f"[bold]{label}[/]"),
         BarColumn(),

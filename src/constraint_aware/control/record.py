@@ -26,8 +26,9 @@ OUTCOME_MEANINGS: dict[str, str] = {
     "for pose_fault_steps steps in a row",
     "bad_command": "the command would have been non-finite or jumped beyond the bound (not sent)",
     "not_following": "the target led the measured pose by more than max_lead for "
-    "follow_patience steps, or the arm's deflection implies much more force than the sensor "
-    "reads (robot frozen, e-stopped or its setpoint clamped; or a sensor reading low)",
+    "follow_patience steps, or the arm's deflection (less the lag the robot reports as its "
+    "tracking_time_constant) implies much more force than the sensor reads (robot frozen, "
+    "e-stopped or its setpoint clamped; or a sensor reading low)",
     "stale_wrench": "the same wrench sample was read stale_steps times in a row",
     "sensor_noise": "the F_d samples were so noisy that the derived dead band reached the "
     "force limit",

@@ -9,7 +9,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from constraint_aware.control.controllers import CONTROLLERS, DirectionController, make_controller
+from constraint_aware.control.controllers import (
+    CONTROLLERS,
+    DirectionController,
+    PolicyController,
+    make_controller,
+)
 from constraint_aware.control.executor import Executor, ExecutorConfig, orient_normal
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import Robot
@@ -142,6 +147,20 @@ def build_task(spec: RunSpec) -> TaskConfig:
     return task.with_overrides(**overrides) if overrides else task
 
 
+def simulated_robot(
+    robot: str,
+    task: TaskConfig,
+    rng: np.random.Generator,
+    noise: float,
+    bias: FloatArray | None = None,
+) -> Embodiment:
+    """The embodiment `robot` (a robot spec, sim.embodiment) on `task`, with Gaussian sensor
+    noise `noise` [N] per axis drawn from `rng` and a force bias (3,) [N]; not reset."""
+    if robot == DEFAULT_ROBOT:
+        return NoisySensorSim(task, rng, noise, bias)
+    return make_embodiment(robot, task, rng, noise, bias)
+
+
 def run(
     spec: RunSpec,
     policy: ConstraintAwarePolicy | None = None,
@@ -161,11 +180,7 @@ def run(
     task = build_task(spec)
     sensor_rng = np.random.default_rng(spec.seed + 7919)
     bias = np.asarray(spec.sensor_bias, dtype=float)
-    sim: Embodiment
-    if spec.robot == DEFAULT_ROBOT:
-        sim = NoisySensorSim(task, sensor_rng, spec.sensor_noise, bias)
-    else:
-        sim = make_embodiment(spec.robot, task, sensor_rng, spec.sensor_noise, bias)
+    sim = simulated_robot(spec.robot, task, sensor_rng, spec.sensor_noise, bias)
     sim.reset()
     cfg = executor_config(task, spec.torque_policy)
     changes = {**spec.executor_overrides, **(executor_overrides or {})}
@@ -206,6 +221,8 @@ def run(
         "command_from": cfg.command_from,
         "robot": spec.robot,
     }
+    if isinstance(ctrl, PolicyController):
+        label["policy"] = ctrl.policy.name  # which policy drove the run (the card's name)
     return executor.run(d0, label), sim
 
 

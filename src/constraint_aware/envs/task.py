@@ -12,10 +12,11 @@ import numpy as np
 from constraint_aware.control.controllers import ControlInput, project_on_plane
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord
-from constraint_aware.control.simulate import NoisySensorSim, executor_config
+from constraint_aware.control.simulate import executor_config, simulated_robot
 from constraint_aware.envs.single_system import check_render_mode
 from constraint_aware.errors import InvalidInputError
 from constraint_aware.geometry import FloatArray, rotate_about, unit
+from constraint_aware.sim.embodiment import DEFAULT_ROBOT, Embodiment, parse_robot
 from constraint_aware.sim.tasks import TaskConfig, randomized, task_config
 from constraint_aware.spatial import Pose, Wrench
 
@@ -57,7 +58,8 @@ class _ActionController:
 class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     """A simulated task (drawer, plate, pole, door, handle) driven by your direction policy.
 
-    The hand grasps the object; each `step` is one 100 ms control period of the robot-agnostic
+    The hand grasps the object; each `step` is one control period (100 ms unless the robot
+    spec sets `period`) of the robot-agnostic
     `Executor` (constraint_aware.control), with your action as its direction controller. The
     executor does everything else it does for `cap run`: the F_d tare, the workplane
     projection, the hand rotation on revolute joints (paper 3.4.1, or the torque policy on
@@ -93,6 +95,10 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         sensor_noise: [N] std of the force reading per axis (default 0.1, as `cap run`);
         torque_policy: None (on exactly for fixed-orientation grasps), True or False;
         executor: ExecutorConfig fields to override (e.g. {"threshold": 2.0});
+        robot: the embodiment, a robot spec (sim.embodiment): "hook-hand" (default), "jaco"
+            (the Kinova Jaco arm and hand), optionally with variants,
+            "jaco:stiffness=5000,period=0.05"; an unknown name or variant fails at
+            construction, naming the valid ones;
         render_mode: None or "rgb_array" (offscreen MuJoCo, sim.render.SceneRenderer),
             width and height [px] of the frames.
     Randomness comes only from `self.np_random` (seed it with `reset(seed=...)`).
@@ -109,6 +115,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         sensor_noise: float = 0.1,
         torque_policy: bool | None = None,
         executor: dict[str, Any] | None = None,
+        robot: str = DEFAULT_ROBOT,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -129,6 +136,8 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             raise InvalidInputError(f"offset_deg {offset_deg!r}: must be finite")
         if not (math.isfinite(sensor_noise) and sensor_noise >= 0):
             raise InvalidInputError(f"sensor_noise {sensor_noise!r} [N]: must be >= 0")
+        parse_robot(robot)  # UnknownNameError / InvalidInputError naming the valid ones
+        self.robot = robot
         self.task_name = self._base.name
         self.offset_deg = offset_deg
         self.randomize = randomize
@@ -150,7 +159,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             }
         )
         self.action_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
-        self.sim: NoisySensorSim | None = None
+        self.sim: Embodiment | None = None
         self.executor: Executor | None = None
         self._controller = _ActionController()
         self._reading: tuple[Wrench, Pose] | None = None
@@ -164,7 +173,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         super().reset(seed=seed)
         rng = self.np_random
         task = randomized(self.task_name, rng) if self.randomize else self._base
-        sim = NoisySensorSim(task, rng, self.sensor_noise)
+        sim = simulated_robot(self.robot, task, rng, self.sensor_noise)
         sim.reset()
         cfg = (
             self.executor_config
@@ -193,6 +202,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "constraint_type": task.constraint_type,
             "force_exertion_type": task.force_exertion_type,
             "force_limit_N": task.force_limit,
+            "robot": self.robot,
         }
         self._record = self.executor.start(d0, label)
         # F_d sampling holds the hand; it ends with the first move (along d0)

@@ -14,16 +14,17 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.control.controllers import make_controller
+from constraint_aware.control.controllers import PolicyController, make_controller
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord
-from constraint_aware.control.simulate import NoisySensorSim, RunSpec, executor_config
+from constraint_aware.control.simulate import RunSpec, executor_config, simulated_robot
 from constraint_aware.errors import CapError
 from constraint_aware.geometry import FloatArray, angle_deg
 from constraint_aware.lfo.infer import SkillParameters
 from constraint_aware.lfo.plausibility import check_certainty
 from constraint_aware.lfo.scene import scene_from_skill, with_goal
 from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.sim.embodiment import DEFAULT_ROBOT, parse_robot
 from constraint_aware.sim.tasks import TaskConfig
 
 SENSOR_NOISE = RunSpec.sensor_noise  # [N] std of the simulated force reading, as `cap run`
@@ -61,13 +62,18 @@ def execute(
     task: TaskConfig | None = None,
     policy: ConstraintAwarePolicy | None = None,
     sensor_noise: float = SENSOR_NOISE,
+    robot: str = DEFAULT_ROBOT,
 ) -> tuple[RunRecord, dict[str, Any]]:
     """Run the skill; returns the record and what was built and how the estimates compare
     with the simulated object's truth.
 
+    robot: the embodiment that executes it, a robot spec (sim.embodiment: "hook-hand", "jaco",
+    "jaco:stiffness=5000,period=0.05"); an unknown name or variant raises UnknownNameError or
+    InvalidInputError naming the valid ones, before anything is built.
     Raises CapError (UncertainEstimateError) before anything moves when the constraint is
     unknown or the estimates are too uncertain for the grasp (lfo/plausibility.py).
     """
+    parse_robot(robot)
     if skill.constraint_type not in ("prismatic", "revolute"):
         raise CapError(
             f"no simulated object for constraint {skill.constraint_type!r}: the demonstration "
@@ -91,7 +97,7 @@ def execute(
         skill.uncertainty.get("path_length_m", 0.0),
         task.slip_limit,
     )
-    sim = NoisySensorSim(task, np.random.default_rng(seed + 7919), sensor_noise)
+    sim = simulated_robot(robot, task, np.random.default_rng(seed + 7919), sensor_noise)
     sim.reset()
     base = executor_config(task, skill.fixed_orientation)
     goal_travel, goal_rotation = robot_goal(skill)
@@ -129,12 +135,16 @@ def execute(
         "force_exertion_type": task.force_exertion_type,
         "force_limit_N": task.force_limit,
         "command_from": cfg.command_from,
+        "robot": robot,
         **goal_label(skill.constraint_type, float(skill.goal)),
     }
+    if isinstance(ctrl, PolicyController):
+        label["policy"] = ctrl.policy.name  # which policy drove the run (the card's name)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, label)
     info = {
         "task": task.name,
         "kind": kind,
+        "robot": robot,
         "notes": notes,
         "object": dataclasses.asdict(task.object),
         **goal_label(skill.constraint_type, float(skill.goal)),

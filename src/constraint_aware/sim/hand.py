@@ -1,4 +1,4 @@
-"""The project's robot hand and compliant wrist, written as MJCF from typed parameters.
+"""The project's robot hand and compliant wrist, built as a `mujoco.MjSpec` from typed parameters.
 
 Frames. The hand's local z axis is the palm normal (pointing at the object), the two fingers
 spread along local +-y, local x = y cross z. The tool point (TCP) is on the palm normal,
@@ -23,12 +23,24 @@ from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
 from constraint_aware.errors import ConfigError, check_number, check_vector
+from constraint_aware.sim.objects import QUAT_DECIMALS, on_grid
 
 if TYPE_CHECKING:
-    from mujoco import MjSpec
+    from mujoco import MjsBody, MjsDefault, MjSpec
+
+#: The virtual arm: (joint = body name, slide or hinge, axis, armature [kg or kg m^2], link
+#: mass [kg]), from the world outwards: x, y, z slides, then yaw, pitch, roll (intrinsic ZYX).
+ARM_CHAIN = (
+    ("arm_x", "slide", (1.0, 0.0, 0.0), 0.01, 0.01),
+    ("arm_y", "slide", (0.0, 1.0, 0.0), 0.01, 0.01),
+    ("arm_z", "slide", (0.0, 0.0, 1.0), 0.01, 0.01),
+    ("arm_yaw", "hinge", (0.0, 0.0, 1.0), 0.001, 0.05),
+    ("arm_pitch", "hinge", (0.0, 1.0, 0.0), 0.001, 0.05),
+    ("arm_roll", "hinge", (1.0, 0.0, 0.0), 0.001, 0.01),
+)
 
 # MuJoCo names, kept in one place: resolve them to ids once (see sim/world.py).
-ARM_JOINTS = ("arm_x", "arm_y", "arm_z", "arm_yaw", "arm_pitch", "arm_roll")
+ARM_JOINTS = tuple(link[0] for link in ARM_CHAIN)
 FINGER_JOINTS = ("finger_left", "finger_right")
 HAND_BODY = "hand"
 WRIST_SITE = "wrist_site"
@@ -36,6 +48,9 @@ TCP_SITE = "tcp"
 FORCE_SENSOR = "wrist_force"
 TORQUE_SENSOR = "wrist_torque"
 HAND_GEOM_PREFIX = "hand_"
+HAND_CLASS = "hand"  # the default class of the hand's geoms (contact parameters)
+GAIN_DECIMALS = 4  # the impedance gains' resolution [N/m, N s/m, ...]; geometry: on_grid
+LINK_INERTIA = 1e-5  # [kg m^2] each axis, of the virtual arm's links (they carry no geoms)
 
 
 @dataclass(frozen=True)
@@ -78,120 +93,155 @@ class HandConfig:
         return 2.0 * self.damping_ratio * (stiffness * inertia) ** 0.5
 
 
-def _finger(cfg: HandConfig, side: str) -> str:
-    sign = 1.0 if side == "left" else -1.0
-    t, w = cfg.finger_thickness, cfg.finger_half_width
-    l1, l2 = cfg.proximal_length, cfg.distal_length
-    # opening rotates the finger away from the centre line (outward, toward sign*y)
-    lo, hi = (-1.2, 0.45) if side == "left" else (-0.45, 1.2)  # [rad]
-    return f"""
-        <body name="finger_{side}" pos="0 {sign * cfg.finger_offset:.5f} 0" gravcomp="1">
-          <joint name="finger_{side}" type="hinge" axis="1 0 0" range="{lo} {hi}"
-                 damping="0.01" armature="0.001"/>
-          <geom name="hand_{side}_proximal" type="box" mass="0.03"
-                size="{w} {t} {l1 / 2 + t / 2:.5f}" pos="0 0 {l1 / 2 - t / 2:.5f}"/>
-          <geom name="hand_{side}_distal" type="box" mass="0.02"
-                size="{w} {l2 / 2 + t / 2:.5f} {t}"
-                pos="0 {-sign * (l2 / 2 - t / 2):.5f} {l1:.5f}"/>
-        </body>"""
-
-
-def hand_mjcf(cfg: HandConfig, mount_quat: tuple[float, float, float, float]) -> str:
-    """The arm chain and hand as a <body> tree rooted at the world origin.
-
-    mount_quat (w, x, y, z): the hand's orientation when all arm hinges are at zero.
-    """
-    px, py, pz = cfg.palm_half
-    q = " ".join(f"{v:.8f}" for v in mount_quat)
-    return f"""
-    <body name="arm_x" gravcomp="1">
-      <joint name="arm_x" type="slide" axis="1 0 0" armature="0.01"/>
-      <inertial pos="0 0 0" mass="0.01" diaginertia="1e-5 1e-5 1e-5"/>
-      <body name="arm_y" gravcomp="1">
-        <joint name="arm_y" type="slide" axis="0 1 0" armature="0.01"/>
-        <inertial pos="0 0 0" mass="0.01" diaginertia="1e-5 1e-5 1e-5"/>
-        <body name="arm_z" gravcomp="1">
-          <joint name="arm_z" type="slide" axis="0 0 1" armature="0.01"/>
-          <inertial pos="0 0 0" mass="0.01" diaginertia="1e-5 1e-5 1e-5"/>
-          <body name="arm_yaw" gravcomp="1">
-            <joint name="arm_yaw" type="hinge" axis="0 0 1" armature="0.001"/>
-            <inertial pos="0 0 0" mass="0.05" diaginertia="1e-5 1e-5 1e-5"/>
-            <body name="arm_pitch" gravcomp="1">
-              <joint name="arm_pitch" type="hinge" axis="0 1 0" armature="0.001"/>
-              <inertial pos="0 0 0" mass="0.05" diaginertia="1e-5 1e-5 1e-5"/>
-              <body name="arm_roll" gravcomp="1">
-                <joint name="arm_roll" type="hinge" axis="1 0 0" armature="0.001"/>
-                <inertial pos="0 0 0" mass="0.01" diaginertia="1e-5 1e-5 1e-5"/>
-                <body name="{HAND_BODY}" quat="{q}" gravcomp="1">
-                  <site name="{WRIST_SITE}" size="0.005"/>
-                  <site name="{TCP_SITE}" pos="0 0 {cfg.tcp_depth}" size="0.004" rgba="1 0 0 1"/>
-                  <geom name="hand_palm" type="box" size="{px} {py} {pz}" pos="0 0 {-pz}"
-                        mass="{cfg.hand_mass}"/>
-                  <geom name="hand_wrist" type="cylinder" size="0.025 0.02" pos="0 0 -0.04"
-                        mass="0.001" contype="0" conaffinity="0" rgba="0.3 0.3 0.35 1"/>
-                  {_finger(cfg, "left")}
-                  {_finger(cfg, "right")}
-                </body>
-              </body>
-            </body>
-          </body>
-        </body>
-      </body>
-    </body>"""
-
-
-def hand_actuators(cfg: HandConfig) -> str:
-    """Position actuators: the wrist impedance (arm joints) and the finger servos."""
-    m = cfg.moving_mass
-    kt, kr = cfg.translational_stiffness, cfg.rotational_stiffness
-    ct = cfg.arm_damping(m, kt)
-    cr = cfg.arm_damping(2e-3, kr)
-    lines = [
-        f'<position name="{j}" joint="{j}" kp="{kt}" kv="{ct:.4f}" ctrlrange="-5 5"/>'
-        for j in ARM_JOINTS[:3]
-    ]
-    lines += [
-        f'<position name="{j}" joint="{j}" kp="{kr}" kv="{cr:.5f}" ctrlrange="-6.3 6.3"/>'
-        for j in ARM_JOINTS[3:]
-    ]
-    lines += [
-        f'<position name="{j}" joint="{j}" kp="{cfg.finger_stiffness}" '
-        f'kv="{cfg.finger_damping}" ctrlrange="-1.5 1.5"/>'
-        for j in FINGER_JOINTS
-    ]
-    return "\n    ".join(lines)
-
-
-def hand_sensors() -> str:
-    return (
-        f'<force name="{FORCE_SENSOR}" site="{WRIST_SITE}"/>\n'
-        f'    <torque name="{TORQUE_SENSOR}" site="{WRIST_SITE}"/>'
-    )
-
-
-def hand_defaults(cfg: HandConfig) -> str:
-    """Contact parameters of the hand's geoms (class "hand")."""
-    return (
-        f'<geom friction="{cfg.friction} {cfg.torsional_friction} 0.0001" condim="4" '
-        f'solref="0.004 1" solimp="0.95 0.99 0.001" rgba="0.85 0.7 0.55 1"/>'
-    )
-
-
 def hand_spec(cfg: HandConfig, mount_quat: tuple[float, float, float, float]) -> MjSpec:
     """The arm chain, hand, actuators and wrist sensors as one spec, to attach to a scene.
 
     mount_quat (w, x, y, z): the hand's orientation when all arm hinges are at zero.
     """
-    body = hand_mjcf(cfg, mount_quat).replace(
-        f'name="{HAND_BODY}"', f'name="{HAND_BODY}" childclass="hand"'
-    )
-    xml = f"""<mujoco model="hook-hand">
-  <compiler angle="radian"/>
-  <default><default class="hand">{hand_defaults(cfg)}</default></default>
-  <worldbody>{body}</worldbody>
-  <actuator>{hand_actuators(cfg)}</actuator>
-  <sensor>{hand_sensors()}</sensor>
-</mujoco>"""
     import mujoco  # here, not at import: sim.tasks (and so the package) must stay light
 
-    return mujoco.MjSpec.from_string(xml)
+    spec = mujoco.MjSpec()
+    spec.modelname = "hook-hand"
+    spec.compiler.degree = False
+    hand_class = _add_hand_class(spec, cfg)
+    hand = _add_arm(spec.worldbody)
+    _add_hand(hand, cfg, hand_class, mount_quat)
+    _add_actuators(spec, cfg)
+    for name, kind in (
+        (FORCE_SENSOR, mujoco.mjtSensor.mjSENS_FORCE),
+        (TORQUE_SENSOR, mujoco.mjtSensor.mjSENS_TORQUE),
+    ):
+        spec.add_sensor(name=name, type=kind, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=WRIST_SITE)
+    return spec
+
+
+def _add_hand_class(spec: MjSpec, cfg: HandConfig) -> MjsDefault:
+    """Contact parameters of the hand's geoms: rubber pads (condim 4: torsional friction),
+    stiff contacts (solref 4 ms, critically damped)."""
+    default = spec.add_default(HAND_CLASS, spec.default)
+    geom = default.geom
+    geom.friction = [cfg.friction, cfg.torsional_friction, 0.0001]
+    geom.condim = 4
+    geom.solref = [0.004, 1.0]
+    geom.solimp = [0.95, 0.99, 0.001, 0.5, 2.0]
+    geom.rgba = [0.85, 0.7, 0.55, 1.0]
+    return default
+
+
+def _add_arm(world: MjsBody) -> MjsBody:
+    """The six-joint chain from the world origin; returns its last link (the roll body).
+    Every link is gravity-compensated: only the hand's weight shows at the wrist sensor."""
+    import mujoco
+
+    types = {"slide": mujoco.mjtJoint.mjJNT_SLIDE, "hinge": mujoco.mjtJoint.mjJNT_HINGE}
+    parent = world
+    for name, kind, axis, armature, mass in ARM_CHAIN:
+        link = parent.add_body(name=name, gravcomp=1.0)
+        link.add_joint(name=name, type=types[kind], axis=list(axis), armature=armature)
+        link.explicitinertial = True
+        link.mass = mass
+        link.ipos = [0.0, 0.0, 0.0]
+        link.inertia = [LINK_INERTIA] * 3
+        parent = link
+    return parent
+
+
+def _add_hand(
+    link: MjsBody,
+    cfg: HandConfig,
+    hand_class: MjsDefault,
+    mount_quat: tuple[float, float, float, float],
+) -> None:
+    """The palm with the wrist sensor and tool-point sites and two fingers, on the arm's last
+    link at `mount_quat`."""
+    import mujoco
+
+    px, py, pz = cfg.palm_half
+    hand = link.add_body(
+        name=HAND_BODY, quat=[round(v, QUAT_DECIMALS) for v in mount_quat], gravcomp=1.0
+    )
+    hand.childclass = HAND_CLASS
+    hand.add_site(name=WRIST_SITE, size=[0.005, 0.005, 0.005])
+    hand.add_site(
+        name=TCP_SITE,
+        pos=[0.0, 0.0, cfg.tcp_depth],
+        size=[0.004, 0.005, 0.005],
+        rgba=[1.0, 0.0, 0.0, 1.0],
+    )
+    box = mujoco.mjtGeom.mjGEOM_BOX
+    hand.add_geom(
+        hand_class, name="hand_palm", type=box, size=[px, py, pz], pos=[0.0, 0.0, -pz],
+        mass=cfg.hand_mass,
+    )  # fmt: skip
+    hand.add_geom(
+        hand_class,
+        name="hand_wrist",
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+        size=[0.025, 0.02, 0.0],
+        pos=[0.0, 0.0, -0.04],
+        mass=0.001,
+        contype=0,  # the flange only shows
+        conaffinity=0,
+        rgba=[0.3, 0.3, 0.35, 1.0],
+    )
+    for side in ("left", "right"):
+        _add_finger(hand, cfg, hand_class, side)
+
+
+def _add_finger(hand: MjsBody, cfg: HandConfig, hand_class: MjsDefault, side: str) -> None:
+    """One finger: a hinge at the palm's edge (axis local x) carrying a rigid L-shaped link,
+    a proximal plate along +z and a distal plate bent toward the palm's centre line."""
+    import mujoco
+
+    sign = 1.0 if side == "left" else -1.0
+    t, w = cfg.finger_thickness, cfg.finger_half_width
+    l1, l2 = cfg.proximal_length, cfg.distal_length
+    # opening rotates the finger away from the centre line (outward, toward sign*y)
+    lo, hi = (-1.2, 0.45) if side == "left" else (-0.45, 1.2)  # [rad]
+    finger = hand.add_body(name=f"finger_{side}", pos=on_grid([0.0, sign * cfg.finger_offset, 0.0]))
+    finger.gravcomp = 1.0
+    finger.add_joint(
+        name=f"finger_{side}",
+        type=mujoco.mjtJoint.mjJNT_HINGE,
+        axis=[1.0, 0.0, 0.0],
+        range=[lo, hi],
+        limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+        damping=0.01,
+        armature=0.001,
+    )
+    box = mujoco.mjtGeom.mjGEOM_BOX
+    finger.add_geom(
+        hand_class,
+        name=f"hand_{side}_proximal",
+        type=box,
+        mass=0.03,
+        size=on_grid([w, t, l1 / 2 + t / 2]),
+        pos=on_grid([0.0, 0.0, l1 / 2 - t / 2]),
+    )
+    finger.add_geom(
+        hand_class,
+        name=f"hand_{side}_distal",
+        type=box,
+        mass=0.02,
+        size=on_grid([w, l2 / 2 + t / 2, t]),
+        pos=on_grid([0.0, -sign * (l2 / 2 - t / 2), l1]),
+    )
+
+
+def _add_actuators(spec: MjSpec, cfg: HandConfig) -> None:
+    """Position actuators: the wrist impedance (arm joints: stiffness, damping ratio against
+    the moving mass / a nominal 2e-3 kg m^2) and the finger servos."""
+    import mujoco
+
+    kt, kr = cfg.translational_stiffness, cfg.rotational_stiffness
+    gains = [(kt, cfg.arm_damping(cfg.moving_mass, kt), 5.0)] * 3
+    gains += [(kr, cfg.arm_damping(2e-3, kr), 6.3)] * 3
+    gains += [(cfg.finger_stiffness, cfg.finger_damping, 1.5)] * 2
+    for joint, (kp, kv, limit) in zip(ARM_JOINTS + FINGER_JOINTS, gains, strict=True):
+        actuator = spec.add_actuator(
+            name=joint,
+            trntype=mujoco.mjtTrn.mjTRN_JOINT,
+            target=joint,
+            ctrlrange=[-limit, limit],
+        )
+        actuator.set_to_position(kp=kp, kv=round(kv, GAIN_DECIMALS))

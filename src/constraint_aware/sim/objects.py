@@ -1,4 +1,5 @@
-"""Articulated objects (one prismatic or revolute joint) as MJCF from typed parameters.
+"""Articulated objects (one prismatic or revolute joint) as `mujoco.MjSpec`s from typed
+parameters.
 
 Conventions: world z is up. A prismatic object slides along `axis` (its opening direction); a
 revolute object turns about `axis` through `position` (right-handed: positive = opening), and
@@ -10,8 +11,9 @@ from these fields alone, always right-handed.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -23,6 +25,9 @@ from constraint_aware.errors import (
     check_vector,
 )
 from constraint_aware.geometry import unit
+
+if TYPE_CHECKING:
+    from mujoco import MjsBody, MjsGeom, MjSpec
 
 JointType = Literal["prismatic", "revolute"]
 HandleShape = Literal["bar", "pole", "plate", "knob"]
@@ -111,60 +116,6 @@ class ObjectConfig:
         return p
 
 
-def _v(x: np.ndarray | tuple[float, ...]) -> str:
-    return " ".join(f"{float(c):.6f}" for c in x)
-
-
-def _handle_geoms(cfg: ObjectConfig, at: np.ndarray, frame: np.ndarray) -> str:
-    """Handle geoms centred at `at` (body frame); frame columns: (out, side, up) unit vectors.
-
-    out: from the object toward the hand; side: the other horizontal; up: vertical.
-    """
-    out, side, up = frame[:, 0], frame[:, 1], frame[:, 2]
-    r, half = cfg.handle_radius, cfg.handle_length / 2
-    fr = f'friction="{cfg.friction} 0.005 0.0001"'
-    if cfg.handle == "bar":
-        # the bar runs along `side` for a drawer, along `up` for a door: chosen by the caller
-        a0, a1 = at - half * side, at + half * side
-        p0 = a0 + 0.3 * half * side - cfg.standoff * out / 2
-        p1 = a1 - 0.3 * half * side - cfg.standoff * out / 2
-        post = f'type="capsule" size="0.005" {fr}'
-        return f"""
-      <geom name="object_handle" type="capsule" size="{r}" fromto="{_v(a0)} {_v(a1)}" {fr}
-            rgba="0.75 0.75 0.78 1"/>
-      <geom name="object_post0" {post} fromto="{_v(p0 - cfg.standoff * out / 2)} {_v(p0)}"
-            rgba="0.75 0.75 0.78 1"/>
-      <geom name="object_post1" {post} fromto="{_v(p1 - cfg.standoff * out / 2)} {_v(p1)}"
-            rgba="0.75 0.75 0.78 1"/>"""
-    if cfg.handle == "pole":
-        a0, a1 = at - 2.5 * half * up, at + half * up
-        return f"""
-      <geom name="object_handle" type="cylinder" size="{r}" fromto="{_v(a0)} {_v(a1)}" {fr}
-            rgba="0.75 0.75 0.78 1"/>"""
-    hx, hy, hz = cfg.handle_half
-    quat = _quat_from_frame(frame)
-    if cfg.handle == "plate":
-        return f"""
-      <geom name="object_handle" type="box" size="{hx} {hy} {hz}" pos="{_v(at - hz * up)}"
-            quat="{quat}" {fr} rgba="0.8 0.8 0.85 1"/>"""
-    # knob: a box on a thin stem, its top face at `at`
-    stem_len = 0.06
-    top = at - hz * up
-    return f"""
-      <geom name="object_handle" type="box" size="{hx} {hy} {hz}" pos="{_v(top)}"
-            quat="{quat}" {fr} rgba="0.8 0.3 0.3 1"/>
-      <geom name="object_stem" type="cylinder" size="0.003"
-            fromto="{_v(at - 2 * hz * up)} {_v(at - (2 * hz + stem_len) * up)}"
-            rgba="0.6 0.6 0.6 1"/>"""
-
-
-def _quat_from_frame(frame: np.ndarray) -> str:
-    from scipy.spatial.transform import Rotation
-
-    x, y, z, w = Rotation.from_matrix(frame).as_quat()
-    return f"{w:.8f} {x:.8f} {y:.8f} {z:.8f}"
-
-
 def object_frame(cfg: ObjectConfig) -> np.ndarray:
     """(3, 3) right-handed columns (out, side, up) at the handle, joint position 0.
 
@@ -206,108 +157,430 @@ def object_frame(cfg: ObjectConfig) -> np.ndarray:
     return np.stack([out, side, up], axis=1)
 
 
-def object_mjcf(cfg: ObjectConfig) -> str:
-    """The object's <body> tree (moving part, handle, joint) plus static visual scenery."""
+# --- the object as an MjSpec ---------------------------------------------------------------
+# Builders add elements in the order the compiled model lists them: the scenery (world body),
+# then the moving body's joint, main part, handle site and handle geoms.
+
+#: Scenes are built on a grid: positions [m], directions and colours to 1e-6, orientations
+#: (quaternions) to 1e-8, the resolution the MJCF templates these builders replaced printed
+#: with. On the grid a scene is the same to the bit however its numbers were computed (frame
+#: products or sums), and that matters: the hand's squeeze grasps are sensitive to the last
+#: bit (measured: moving a finger plate by 2e-18 m changes a sideways pole's wrist force by
+#: 0.02 N within 27 steps; a door with a squeezed pole chatters, and 1e-10 m shifts its
+#: phase), so off the grid every refactoring would change stored runs.
+GRID_DECIMALS = 6
+QUAT_DECIMALS = 8
+
+#: Colours [rgba] of the parts that do not take the object's own colour.
+METAL_RGBA = (0.75, 0.75, 0.78, 1.0)  # bars, poles, posts
+PLATE_RGBA = (0.8, 0.8, 0.85, 1.0)
+KNOB_RGBA = (0.8, 0.3, 0.3, 1.0)
+STEM_RGBA = (0.6, 0.6, 0.6, 1.0)
+HUB_RGBA = (0.3, 0.3, 0.3, 1.0)
+SCENERY_RGBA = (0.8, 0.8, 0.78, 1.0)
+VISUAL_GROUP = 1  # the visual parts (main part, furniture): no contact with a hand
+#: Contact bit that robot-arm geoms carry and the hook hand's do not: dm-control's convention
+#: (the Jaco's geoms: contype 3 = bits 1 | 2, conaffinity 2; the hook hand's: contype =
+#: conaffinity = 1). An object built `solid_for_arms` gives its visual parts this
+#: conaffinity (contype 0): an arm's links and fingers then touch the door panel, drawer box,
+#: crank arm and the furniture, while the hook hand's contacts (and runs) stay as they are and
+#: the object's parts never touch each other or the handle.
+ARM_CONTACT_BIT = 2
+POST_RADIUS = 0.005  # [m] the bar's standoff posts
+KNOB_STEM = 0.06  # [m] knob: the stem from the knob down to the crank arm
+PANEL_HALF_THICKNESS = 0.015  # [m] door / lid panel
+PANEL_OVERHANG = 0.1  # [m] door / lid panel past the handle, away from the hinge
+HANDLE_SITE_SIZE = 0.004  # [m]
+
+
+def object_spec(cfg: ObjectConfig, solid_for_arms: bool = False) -> MjSpec:
+    """The object as its own spec, ready to attach to a scene (sim/scene.py): static scenery in
+    the world body and the moving body `OBJECT_BODY` with its joint, main part, handle site and
+    handle, everything in world coordinates (the world origin is the scene's).
+
+    solid_for_arms: the visual parts (main part, scenery) collide with geoms carrying
+    `ARM_CONTACT_BIT` in their contype (a real arm's), still not with the hook hand's.
+    """
+    import mujoco  # here, not at import: sim.tasks (and so the package) must stay light
+
+    spec = mujoco.MjSpec()
+    spec.modelname = "object"
+    spec.compiler.degree = False
+    add_object(spec.worldbody, cfg)
+    if solid_for_arms:
+        for geom in spec.geoms:
+            if geom.group == VISUAL_GROUP and geom.contype == 0 and geom.conaffinity == 0:
+                geom.conaffinity = ARM_CONTACT_BIT
+    return spec
+
+
+def add_object(world: MjsBody, cfg: ObjectConfig) -> MjsBody:
+    """Add the object's scenery and moving body to `world` (a spec's world body); returns the
+    moving body. Its joint is the only constraint: the main part (box, panel, arm, carriage)
+    and the scenery are visual, without contacts; only the handle's geoms touch a hand."""
     frame = object_frame(cfg)
-    out, side, up = frame[:, 0], frame[:, 1], frame[:, 2]
     handle = cfg.handle_position
-    px, py, pz = cfg.panel_half
-    lo, hi = cfg.joint_range
-    joint_common = (
-        f'name="{OBJECT_JOINT}" damping="{cfg.damping}" frictionloss="{cfg.frictionloss}" '
-        f'range="{lo} {hi}" limited="true" armature="0.01"'
-    )
+    SCENERY_BUILDERS[_scenery_kind(cfg)](world, cfg, frame)
     if cfg.joint_type == "prismatic":
-        body_pos = handle
-        joint = f'<joint {joint_common} type="slide" axis="{_v(cfg.axis)}"/>'
-        local_handle = np.zeros(3)
+        body_pos, local_handle = handle, np.zeros(3)  # the body origin is the handle at q = 0
     else:
-        body_pos = np.asarray(cfg.position, dtype=float)
-        joint = f'<joint {joint_common} type="hinge" axis="{_v(cfg.axis)}" pos="0 0 0"/>'
+        body_pos = np.asarray(cfg.position, dtype=float)  # ... the hinge point
         local_handle = handle - body_pos
-    quat = _quat_from_frame(frame)
-    if cfg.handle == "bar" and cfg.joint_type == "prismatic":
-        bar_frame = frame  # horizontal bar along `side`
-    elif cfg.handle == "bar":
-        bar_frame = np.stack([out, up, -side], axis=1)  # vertical bar on a door
-    else:
-        bar_frame = frame
-    handle_xml = _handle_geoms(cfg, local_handle, bar_frame)
-    # the moving part's main body (visual, no collisions: the joint is the constraint)
-    vis = 'contype="0" conaffinity="0" group="1"'
-    if cfg.handle == "bar" and cfg.joint_type == "prismatic":
-        centre = local_handle - (cfg.standoff + px) * out
-        main = (
-            f'<geom name="object_box" type="box" size="{px} {py} {pz}" pos="{_v(centre)}" '
-            f'quat="{quat}" {vis} rgba="{_v(cfg.rgba)}" mass="{cfg.mass}"/>'
-        )
-    elif cfg.joint_type == "revolute" and cfg.handle == "bar":
-        # door panel from the hinge to past the handle, behind the bar
-        length = cfg.radius + 0.1
-        centre = (
-            local_handle - cfg.standoff * out - (cfg.radius - length / 2) * np.asarray(cfg.radial)
-        )
-        door_frame = np.stack([out, -np.asarray(cfg.radial, float), up], axis=1)  # right-handed:
-        # up follows the hinge axis (object_frame), so a left-hinged door's up is -z
-        main = (
-            f'<geom name="object_panel" type="box" size="0.015 {length / 2} {pz}" '
-            f'pos="{_v(centre - 0.015 * out)}" quat="{_quat_from_frame(door_frame)}" {vis} '
-            f'rgba="{_v(cfg.rgba)}" mass="{cfg.mass}"/>'
-        )
-    elif cfg.joint_type == "revolute":
-        # crank arm from the hub to the knob, below the knob's stem
-        below = local_handle - (2 * cfg.handle_half[2] + 0.06) * up
-        hub = below - cfg.radius * np.asarray(cfg.radial, float)
-        main = (
-            f'<geom name="object_arm" type="capsule" size="0.008" fromto="{_v(hub)} '
-            f'{_v(below)}" {vis} rgba="{_v(cfg.rgba)}" mass="{cfg.mass}"/>\n'
-            f'      <geom name="object_hub" type="cylinder" size="0.02 0.01" pos="{_v(hub)}" '
-            f'{vis} rgba="0.3 0.3 0.3 1" mass="0.01"/>'
-        )
-    elif cfg.handle == "pole":
-        main = (
-            f'<geom name="object_carriage" type="box" size="0.04 0.04 0.02" '
-            f'pos="{_v(local_handle - 0.2 * up)}" {vis} rgba="{_v(cfg.rgba)}" '
-            f'mass="{cfg.mass}"/>'
-        )
-    else:  # plate: the handle geom is the plate itself; give it the object's mass
-        main = (
-            f'<geom name="object_carriage" type="box" size="0.03 0.03 0.005" '
-            f'pos="{_v(local_handle - (2 * cfg.handle_half[2] + 0.005) * up)}" {vis} '
-            f'rgba="{_v(cfg.rgba)}" mass="{cfg.mass}"/>'
-        )
-    scenery = _scenery(cfg, frame)
-    return f"""
-    {scenery}
-    <body name="{OBJECT_BODY}" pos="{_v(body_pos)}" gravcomp="{cfg.counterbalance}">
-      {joint}
-      {main}
-      <site name="{HANDLE_SITE}" pos="{_v(local_handle)}" size="0.004" rgba="0 1 0 1"/>
-      {handle_xml}
-    </body>"""
-
-
-def _scenery(cfg: ObjectConfig, frame: np.ndarray) -> str:
-    """Static, non-colliding context: a cabinet, a rail, a wall, a table."""
-    out, up = frame[:, 0], frame[:, 2]
-    vis = 'contype="0" conaffinity="0" group="1" rgba="0.8 0.8 0.78 1"'
-    h = cfg.handle_position
-    if cfg.joint_type == "prismatic" and cfg.handle == "bar":
-        px, py, pz = cfg.panel_half
-        c = h - (cfg.standoff + px + 0.02) * out
-        q = _quat_from_frame(frame)
-        return (
-            f'<geom name="scene_cabinet" type="box" size="{px} {py + 0.03} {pz + 0.03}" '
-            f'pos="{_v(c)}" quat="{q}" {vis}/>'
-        )
-    if cfg.joint_type == "prismatic":
-        rail = h - 0.25 * up if cfg.handle == "pole" else h - (2 * cfg.handle_half[2] + 0.02) * up
-        a0, a1 = rail - 0.1 * out, rail + 0.4 * out
-        return (
-            f'<geom name="scene_rail" type="capsule" size="0.01" fromto="{_v(a0)} {_v(a1)}" {vis}/>'
-        )
-    p = np.asarray(cfg.position, float)
-    a0, a1 = p - 0.3 * up, p + 0.3 * up
-    return (
-        f'<geom name="scene_hinge" type="cylinder" size="0.012" fromto="{_v(a0)} {_v(a1)}" {vis}/>'
+    body = world.add_body(name=OBJECT_BODY, pos=on_grid(body_pos), gravcomp=cfg.counterbalance)
+    _add_joint(body, cfg)
+    MOVING_PART_BUILDERS[_moving_part_kind(cfg)](body, cfg, frame, local_handle)
+    body.add_site(
+        name=HANDLE_SITE,
+        pos=on_grid(local_handle),
+        size=[HANDLE_SITE_SIZE, 0.005, 0.005],
+        rgba=[0.0, 1.0, 0.0, 1.0],
     )
+    # the handle in its own frame: x out (toward the hand), y along a bar, z up
+    if cfg.handle == "bar" and cfg.joint_type == "revolute":
+        out, side, up = frame[:, 0], frame[:, 1], frame[:, 2]
+        handle_axes = np.stack([out, up, -side], axis=1)  # a door's bar runs along its hinge
+    else:
+        handle_axes = frame  # a drawer's bar runs along `side`
+    HANDLE_BUILDERS[cfg.handle](body, HandleFrame(local_handle, handle_axes), cfg)
+    return body
+
+
+def _add_joint(body: MjsBody, cfg: ObjectConfig) -> None:
+    import mujoco
+
+    joint = mujoco.mjtJoint
+    kind = joint.mjJNT_SLIDE if cfg.joint_type == "prismatic" else joint.mjJNT_HINGE
+    body.add_joint(
+        name=OBJECT_JOINT,
+        type=kind,
+        axis=on_grid(cfg.axis),
+        pos=[0.0, 0.0, 0.0],  # a hinge passes through the body origin, `position`
+        damping=cfg.damping,
+        frictionloss=cfg.frictionloss,
+        range=list(cfg.joint_range),
+        limited=mujoco.mjtLimited.mjLIMITED_TRUE,
+        armature=0.01,
+    )
+
+
+# --- handles: one builder per shape, in the handle's frame (x out, y along a bar, z up) -----
+@dataclass(frozen=True)
+class HandleFrame:
+    """The handle's frame in its body: origin (3,) [m] the grasp centre, axes (3, 3) columns =
+    the frame's x (out, toward the hand), y (along a bar), z (up) in body coordinates.
+
+    The builders place geoms through it in body coordinates rather than in an `MjsFrame`: a
+    capsule or cylinder given by `fromto` inside a rotated frame compiles to the same axis
+    but a different turn about it, and MuJoCo's convex collision of a cylinder depends on that
+    turn (measured: the wrist force of a 30-step pole run moved by up to 0.05 N), which would
+    change the hook hand's runs.
+    """
+
+    origin: np.ndarray
+    axes: np.ndarray
+
+    def point(self, x: float, y: float, z: float) -> list[float]:
+        """(3,) [m] body coordinates of the handle-frame point (x, y, z), on the grid."""
+        return on_grid(self.origin + self.axes @ np.array([x, y, z]))
+
+    def segment(self, a: tuple[float, float, float], b: tuple[float, float, float]) -> list[float]:
+        """A `fromto` (6,) [m] in body coordinates from two handle-frame points."""
+        return [*self.point(*a), *self.point(*b)]
+
+    @property
+    def quat(self) -> list[float]:
+        return _quat(self.axes)
+
+
+def _handle_friction(cfg: ObjectConfig) -> list[float]:
+    return [cfg.friction, 0.005, 0.0001]
+
+
+def _bar_handle(body: MjsBody, at: HandleFrame, cfg: ObjectConfig) -> None:
+    """A bar along y on two posts reaching back (-x) `standoff` to the panel; hooked (lazy
+    closure)."""
+    import mujoco
+
+    capsule = mujoco.mjtGeom.mjGEOM_CAPSULE
+    half, s = cfg.handle_length / 2, cfg.standoff
+    body.add_geom(
+        name="object_handle",
+        type=capsule,
+        size=[cfg.handle_radius, 0.0, 0.0],
+        fromto=at.segment((0.0, -half, 0.0), (0.0, half, 0.0)),
+        friction=_handle_friction(cfg),
+        rgba=list(METAL_RGBA),
+    )
+    for i, y in enumerate((-0.7 * half, 0.7 * half)):
+        body.add_geom(
+            name=f"object_post{i}",
+            type=capsule,
+            size=[POST_RADIUS, 0.0, 0.0],
+            fromto=at.segment((-s, y, 0.0), (-s / 2, y, 0.0)),
+            friction=_handle_friction(cfg),
+            rgba=list(METAL_RGBA),
+        )
+
+
+def _pole_handle(body: MjsBody, at: HandleFrame, cfg: ObjectConfig) -> None:
+    """A vertical cylinder, most of it below the grasp centre; squeezed (active closure)."""
+    import mujoco
+
+    half = cfg.handle_length / 2
+    body.add_geom(
+        name="object_handle",
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+        size=[cfg.handle_radius, 0.0, 0.0],
+        fromto=at.segment((0.0, 0.0, -2.5 * half), (0.0, 0.0, half)),
+        friction=_handle_friction(cfg),
+        rgba=list(METAL_RGBA),
+    )
+
+
+def _plate_handle(body: MjsBody, at: HandleFrame, cfg: ObjectConfig) -> None:
+    """A box whose top face is the grasp centre; pressed from above (passive closure)."""
+    import mujoco
+
+    hz = cfg.handle_half[2]
+    body.add_geom(
+        name="object_handle",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=list(cfg.handle_half),
+        pos=at.point(0.0, 0.0, -hz),
+        quat=at.quat,
+        friction=_handle_friction(cfg),
+        rgba=list(PLATE_RGBA),
+    )
+
+
+def _knob_handle(body: MjsBody, at: HandleFrame, cfg: ObjectConfig) -> None:
+    """A box on a thin stem, its top face the grasp centre; held by palm and fingers at a fixed
+    orientation (passive closure)."""
+    import mujoco
+
+    hz = cfg.handle_half[2]
+    body.add_geom(
+        name="object_handle",
+        type=mujoco.mjtGeom.mjGEOM_BOX,
+        size=list(cfg.handle_half),
+        pos=at.point(0.0, 0.0, -hz),
+        quat=at.quat,
+        friction=_handle_friction(cfg),
+        rgba=list(KNOB_RGBA),
+    )
+    body.add_geom(
+        name="object_stem",
+        type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+        size=[0.003, 0.0, 0.0],
+        fromto=at.segment((0.0, 0.0, -2 * hz), (0.0, 0.0, -(2 * hz + KNOB_STEM))),
+        rgba=list(STEM_RGBA),
+    )
+
+
+HANDLE_BUILDERS: dict[str, Callable[[MjsBody, HandleFrame, ObjectConfig], None]] = {
+    "bar": _bar_handle,
+    "pole": _pole_handle,
+    "plate": _plate_handle,
+    "knob": _knob_handle,
+}
+
+
+# --- the moving part's main body: visual, carries the object's mass -------------------------
+# Body coordinates (axes = world axes); `handle` is the handle's centre in them, `frame` the
+# object frame (out, side, up).
+def _visual(geom: MjsGeom) -> None:
+    geom.contype = 0  # the joint is the constraint; the part only shows and weighs
+    geom.conaffinity = 0
+    geom.group = VISUAL_GROUP
+
+
+def _drawer_front(body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: np.ndarray) -> None:
+    """Prismatic bar (drawer, window): the drawer box / sash behind the bar's posts."""
+    import mujoco
+
+    px = cfg.panel_half[0]
+    _visual(
+        body.add_geom(
+            name="object_box",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=list(cfg.panel_half),
+            pos=on_grid(handle - (cfg.standoff + px) * frame[:, 0]),
+            quat=_quat(frame),
+            rgba=on_grid(cfg.rgba),
+            mass=cfg.mass,
+        )
+    )
+
+
+def _door_panel(body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: np.ndarray) -> None:
+    """Revolute bar (door, lid): a panel from the hinge to `PANEL_OVERHANG` past the handle,
+    behind the bar's posts."""
+    import mujoco
+
+    out, up = frame[:, 0], frame[:, 2]
+    radial = np.asarray(cfg.radial, dtype=float)
+    length = cfg.radius + PANEL_OVERHANG
+    t = PANEL_HALF_THICKNESS
+    centre = handle - (cfg.standoff + t) * out - (cfg.radius - length / 2) * radial
+    panel_frame = np.stack([out, -radial, up], axis=1)  # right-handed: up is the hinge axis
+    _visual(
+        body.add_geom(
+            name="object_panel",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[t, length / 2, cfg.panel_half[2]],
+            pos=on_grid(centre),
+            quat=_quat(panel_frame),
+            rgba=on_grid(cfg.rgba),
+            mass=cfg.mass,
+        )
+    )
+
+
+def _crank_arm(body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: np.ndarray) -> None:
+    """Revolute knob or pole (crank): an arm from the hub to below the handle's stem."""
+    import mujoco
+
+    below = handle - (2 * cfg.handle_half[2] + KNOB_STEM) * frame[:, 2]
+    hub = below - cfg.radius * np.asarray(cfg.radial, dtype=float)
+    _visual(
+        body.add_geom(
+            name="object_arm",
+            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+            size=[0.008, 0.0, 0.0],
+            fromto=on_grid([*hub, *below]),
+            rgba=on_grid(cfg.rgba),
+            mass=cfg.mass,
+        )
+    )
+    _visual(
+        body.add_geom(
+            name="object_hub",
+            type=mujoco.mjtGeom.mjGEOM_CYLINDER,
+            size=[0.02, 0.01, 0.0],
+            pos=on_grid(hub),
+            rgba=list(HUB_RGBA),
+            mass=0.01,
+        )
+    )
+
+
+def _pole_carriage(body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: np.ndarray) -> None:
+    """Prismatic pole: a carriage on the rail below the pole."""
+    import mujoco
+
+    _visual(
+        body.add_geom(
+            name="object_carriage",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[0.04, 0.04, 0.02],
+            pos=on_grid(handle - 0.2 * frame[:, 2]),
+            rgba=on_grid(cfg.rgba),
+            mass=cfg.mass,
+        )
+    )
+
+
+def _plate_carriage(
+    body: MjsBody, cfg: ObjectConfig, frame: np.ndarray, handle: np.ndarray
+) -> None:
+    """Prismatic plate or knob: a carriage just below it (the handle geom is the plate
+    itself; the carriage gives the part the object's mass)."""
+    import mujoco
+
+    _visual(
+        body.add_geom(
+            name="object_carriage",
+            type=mujoco.mjtGeom.mjGEOM_BOX,
+            size=[0.03, 0.03, 0.005],
+            pos=on_grid(handle - (2 * cfg.handle_half[2] + 0.005) * frame[:, 2]),
+            rgba=on_grid(cfg.rgba),
+            mass=cfg.mass,
+        )
+    )
+
+
+MovingPartBuilder = Callable[["MjsBody", ObjectConfig, np.ndarray, np.ndarray], None]
+MOVING_PART_BUILDERS: dict[str, MovingPartBuilder] = {
+    "drawer_front": _drawer_front,
+    "door_panel": _door_panel,
+    "crank_arm": _crank_arm,
+    "pole_carriage": _pole_carriage,
+    "plate_carriage": _plate_carriage,
+}
+
+
+def _moving_part_kind(cfg: ObjectConfig) -> str:
+    if cfg.joint_type == "revolute":
+        return "door_panel" if cfg.handle == "bar" else "crank_arm"
+    return {"bar": "drawer_front", "pole": "pole_carriage"}.get(cfg.handle, "plate_carriage")
+
+
+# --- static scenery in the world body: visual context --------------------------------------
+def _scenery_geom(world: MjsBody, name: str) -> MjsGeom:
+    geom = world.add_geom(name=name, rgba=list(SCENERY_RGBA))
+    _visual(geom)
+    return geom
+
+
+def _cabinet(world: MjsBody, cfg: ObjectConfig, frame: np.ndarray) -> None:
+    """Prismatic bar: the cabinet (or window frame) around the drawer box."""
+    import mujoco
+
+    px, py, pz = cfg.panel_half
+    geom = _scenery_geom(world, "scene_cabinet")
+    geom.type = mujoco.mjtGeom.mjGEOM_BOX
+    geom.size = [px, py + 0.03, pz + 0.03]
+    geom.pos = on_grid(cfg.handle_position - (cfg.standoff + px + 0.02) * frame[:, 0])
+    geom.quat = _quat(frame)
+
+
+def _rail(world: MjsBody, cfg: ObjectConfig, frame: np.ndarray) -> None:
+    """Prismatic pole or plate: the rail the carriage runs on."""
+    import mujoco
+
+    out, up = frame[:, 0], frame[:, 2]
+    h = cfg.handle_position
+    rail = h - 0.25 * up if cfg.handle == "pole" else h - (2 * cfg.handle_half[2] + 0.02) * up
+    geom = _scenery_geom(world, "scene_rail")
+    geom.type = mujoco.mjtGeom.mjGEOM_CAPSULE
+    geom.size = [0.01, 0.0, 0.0]
+    geom.fromto = on_grid([*(rail - 0.1 * out), *(rail + 0.4 * out)])
+
+
+def _hinge_post(world: MjsBody, cfg: ObjectConfig, frame: np.ndarray) -> None:
+    """Revolute: a post along the hinge axis."""
+    import mujoco
+
+    p, up = np.asarray(cfg.position, dtype=float), frame[:, 2]
+    geom = _scenery_geom(world, "scene_hinge")
+    geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
+    geom.size = [0.012, 0.0, 0.0]
+    geom.fromto = on_grid([*(p - 0.3 * up), *(p + 0.3 * up)])
+
+
+SCENERY_BUILDERS: dict[str, Callable[[MjsBody, ObjectConfig, np.ndarray], None]] = {
+    "cabinet": _cabinet,
+    "rail": _rail,
+    "hinge_post": _hinge_post,
+}
+
+
+def _scenery_kind(cfg: ObjectConfig) -> str:
+    if cfg.joint_type == "revolute":
+        return "hinge_post"
+    return "cabinet" if cfg.handle == "bar" else "rail"
+
+
+def _quat(frame: np.ndarray) -> list[float]:
+    """(4,) quaternion (w, x, y, z) of a (3, 3) rotation whose columns are the rotated frame's
+    axes, on the orientation grid (MuJoCo normalizes it)."""
+    import mujoco
+
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(frame, dtype=float).reshape(9))
+    return [round(float(c), QUAT_DECIMALS) for c in q]
+
+
+def on_grid(v: np.ndarray | tuple[float, ...] | list[float]) -> list[float]:
+    """The numbers of a position [m], direction or colour on the scene's grid (`GRID_DECIMALS`)."""
+    return [round(float(c), GRID_DECIMALS) for c in v]

@@ -52,15 +52,16 @@ __all__ = [
 HOOK_PREFIX = "hook:"  # the hook hand's names in the composed scene: "hook:arm_x", ...
 
 
-def build_spec(task: TaskConfig) -> mujoco.MjSpec:
-    """A task's scene (sim/scene.py) with the hook hand on its virtual arm composed in."""
+def build_spec(task: TaskConfig, *, solid_for_arms: bool = False) -> mujoco.MjSpec:
+    """A task's scene (sim/scene.py) with the hook hand on its virtual arm composed in
+    (`solid_for_arms`: see `sim.objects.object_spec`; the hook hand's runs are the same)."""
     x, y, z, w = Rotation.from_matrix(task.hand_mount()).as_quat()
 
     def attach_hand(spec: mujoco.MjSpec) -> None:
         frame = spec.worldbody.add_frame()
         spec.attach(hand_spec(task.hand, (w, x, y, z)), prefix=HOOK_PREFIX, frame=frame)
 
-    return scene_spec(task, attach_hand)
+    return scene_spec(task, attach_hand, solid_for_arms=solid_for_arms)
 
 
 def build_mjcf(task: TaskConfig) -> str:
