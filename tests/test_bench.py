@@ -158,9 +158,9 @@ def test_policy_section_in_results_and_report(bench_dir: Path) -> None:
     section = PolicySection.from_dict(results["policy_section"])
     assert section.threshold_N == threshold_from_noise(section.sensor_noise_N)
     controllers = {c.controller for c in section.paper_offsets}
-    assert controllers == {"default", "paper", "classical", "projection"}
+    assert controllers == {"default", "paper", "steady", "classical", "projection"}
     assert (
-        "## Policies: paper vs default vs classical vs projection"
+        "## Policies: paper vs default vs steady vs classical vs projection"
         in (bench_dir / "report.md").read_text()
     )
 

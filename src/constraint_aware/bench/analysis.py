@@ -1,4 +1,4 @@
-"""The policy section of the bench (issue 9): paper vs default vs classical vs projection.
+"""The policy section of the bench (issue 9): paper vs default vs steady vs classical vs projection.
 
 Typed from end to end: experiments produce `RunResult`s, `summarize` groups them by their own
 keys (never by the order runs were generated) into `CellSummary`s, and the report reads those.
@@ -32,6 +32,8 @@ from constraint_aware.spatial import Wrench
 POLICY_SECTION_CONTROLLERS: dict[str, tuple[str, str | None]] = {
     "default": ("policy", "default"),
     "paper": ("policy", "paper"),
+    # the default policy inside SteadyDirection (docs/forces.md): the force-shaping candidate
+    "steady": ("steady", "default"),
     "classical": ("classical", None),
     "projection": ("projection", None),
 }

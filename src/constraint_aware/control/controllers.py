@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from constraint_aware.errors import UnknownNameError
+from constraint_aware.errors import UnknownNameError, check_number
 from constraint_aware.geometry import FloatArray, normalize_force, unit, update_direction_rule
 from constraint_aware.policy import ConstraintAwarePolicy
 
@@ -22,7 +23,9 @@ class ControlInput:
     dt: [s] control period; threshold: [N] below which |F| counts as no force;
     workplane_normal: (3,) unit, when the workplane is known (assumption 4);
     step_force: [N] k*delta, the robot's translational impedance stiffness times the step
-    length (the force of one fully blocked step), when the robot reports its stiffness.
+    length (the force of one fully blocked step), when the robot reports its stiffness;
+    fixed_orientation: the executor turns the hand by the torque policy (a fixed-orientation
+    grasp, paper appendix): a controller's own hand rotation would override it.
     """
 
     force: FloatArray
@@ -32,6 +35,7 @@ class ControlInput:
     threshold: float
     workplane_normal: FloatArray | None = None
     step_force: float | None = None
+    fixed_orientation: bool = False
 
 
 class DirectionController(Protocol):
@@ -110,6 +114,153 @@ class PolicyController(_Base):
         )
 
 
+#: Overshoot damping, Rprop's step factors (Riedmiller & Braun, ICNN 1993, eta- and eta+):
+#: a proposed turn that reverses the last one halves the gain on the turns, one that keeps its
+#: sense lets the gain grow back by 1.2 (up to 1).
+OVERSHOOT_FACTOR = 0.5
+RECOVERY_FACTOR = 1.2
+#: The smallest gain: a tenth of the proposed turn still corrects a persistent error.
+MIN_TURN_GAIN = 0.1
+#: Without a known rotation rate, the hand turns by an exponential average of the applied
+#: turns with this weight on the newest (about the last three steps).
+HAND_SMOOTHING = 0.3
+
+
+@dataclass(frozen=True)
+class SteadyConfig:
+    """Which parts of `SteadyDirection` act (each measured on its own in bench/forces.py).
+
+    confidence_ramp: the turn is scaled by clip((|F| - threshold) / threshold, 0, 1): a force
+    just above the dead band is mostly noise (the band is 4 sigma of it), its direction is not
+    trusted, from twice the band on it is fully. overshoot_damping: Rprop's gain on the turns
+    (OVERSHOOT_FACTOR, RECOVERY_FACTOR, MIN_TURN_GAIN). rotation_feedforward: with a known
+    rotation rate w [rad/s] (revolute, w = v / r, what the classical controller is given), d
+    also turns by w dt between consecutive moves and the hand turns by w dt each step; without
+    it the hand turns by the smoothed applied turn (HAND_SMOOTHING) instead of each step's.
+    """
+
+    confidence_ramp: bool = True
+    overshoot_damping: bool = True
+    rotation_feedforward: bool = True
+    overshoot_factor: float = OVERSHOOT_FACTOR
+    recovery_factor: float = RECOVERY_FACTOR
+    min_gain: float = MIN_TURN_GAIN
+    hand_smoothing: float = HAND_SMOOTHING
+
+    def __post_init__(self) -> None:
+        n = "SteadyConfig."
+        check_number(n + "overshoot_factor", self.overshoot_factor, low=0, low_open=True, high=1)
+        check_number(n + "recovery_factor", self.recovery_factor, low=1)
+        check_number(n + "min_gain", self.min_gain, low=0, low_open=True, high=1)
+        check_number(n + "hand_smoothing", self.hand_smoothing, low=0, low_open=True, high=1)
+
+
+class SteadyDirection(_Base):
+    """Any direction controller with its turns steadied (issue 9's door and drawer forces).
+
+    Measured cause (bench/forces.py): the default policy turns d by 5-12 deg for any force
+    just above the dead band, so on the door it settles into a +-10 deg zig-zag from step to
+    step instead of a lag, and paper 3.4.1's hand rotation (the hand turns with every change
+    of d) rocks the hand on the handle with it: median peak 11 N where the classical
+    controller, whose hand turns at the known w = v / r, has 3.6 N. On the drawer the same
+    kicks, one step and its reversal, double the mean |F|.
+
+    Each step: the inner controller proposes d' (3,); the turn d -> d' (a rotation vector,
+    any axis) is scaled by the confidence ramp and the overshoot gain, plus the feed-forward
+    turn about the workplane normal when the rotation rate is known; d_{t+1} is d turned by
+    it. The hand rotation (revolute, asked by the executor) is the known rate's, or the
+    smoothed turn; None on a fixed-orientation grasp (the executor's torque policy).
+    Nothing depends on a policy file or a task: the inputs are the force, the dead band, the
+    workplane normal and, when given, the rotation rate.
+    """
+
+    def __init__(
+        self,
+        inner: DirectionController,
+        rotation_rate: float | None = None,
+        config: SteadyConfig | None = None,
+        name: str = "steady",
+    ) -> None:
+        self.inner = inner
+        if rotation_rate is not None:
+            rotation_rate = check_number("rotation_rate", rotation_rate, unit="rad/s")
+        self.rotation_rate = rotation_rate  # [rad/s] w_d, or None
+        self.config = config or SteadyConfig()
+        self.name = name
+        self.reset(np.array([1.0, 0.0, 0.0]))
+
+    def reset(self, direction: FloatArray) -> None:
+        self.inner.reset(direction)
+        self.gain = 1.0
+        self._last_turn = np.zeros(3)  # the last non-zero proposed turn (rotation vector)
+        self._smoothed = np.zeros(3)  # [rad] exponential average of the applied turns
+        self._moved = False
+        self._rotation: Rotation | None = None
+
+    def step_length(self, nominal: float) -> float:
+        return self.inner.step_length(nominal)
+
+    def hand_rotation(self) -> Rotation | None:
+        return self._rotation
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        cfg = self.config
+        d = np.asarray(inp.direction, dtype=float)
+        proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
+        if proposed.shape != (3,) or not np.all(np.isfinite(proposed)):
+            return proposed  # the executor stops on it ("bad_command"), naming it
+        turn = turn_vector(d, unit(proposed))
+        if cfg.overshoot_damping and np.linalg.norm(turn) > 1e-9:
+            # the inner controller's own proposals: one that reverses the last overshot
+            if float(turn @ self._last_turn) < 0:
+                self.gain = max(self.gain * cfg.overshoot_factor, cfg.min_gain)
+            else:
+                self.gain = min(self.gain * cfg.recovery_factor, 1.0)
+            self._last_turn = turn
+        if cfg.overshoot_damping:
+            turn = self.gain * turn
+        if cfg.confidence_ramp:
+            turn = turn * _confidence(float(np.linalg.norm(inp.force)), inp.threshold)
+        normal = inp.workplane_normal
+        known = cfg.rotation_feedforward and self.rotation_rate is not None and normal is not None
+        per_step = np.zeros(3)
+        if known:
+            assert self.rotation_rate is not None and normal is not None
+            per_step = self.rotation_rate * inp.dt * np.asarray(normal, dtype=float)
+            if self._moved:  # the path turns between consecutive moves; not before the first
+                turn = turn + per_step
+        self._moved = True
+        self._smoothed = self._smoothed + cfg.hand_smoothing * (turn - self._smoothed)
+        if inp.fixed_orientation:
+            self._rotation = None
+        else:
+            self._rotation = Rotation.from_rotvec(per_step if known else self._smoothed)
+        return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
+
+
+def turn_vector(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The rotation vector (3,) [rad] turning unit a onto unit b about a x b (zero if equal;
+    for opposite vectors, any perpendicular axis)."""
+    axis = np.cross(a, b)
+    s = float(np.linalg.norm(axis))
+    c = float(a @ b)
+    if s < 1e-12:
+        if c > 0:
+            return np.zeros(3)
+        perp = np.cross(a, [1.0, 0.0, 0.0])
+        if np.linalg.norm(perp) < 1e-6:
+            perp = np.cross(a, [0.0, 1.0, 0.0])
+        return np.asarray(unit(perp) * math.pi)
+    return np.asarray(axis / s * math.atan2(s, c))
+
+
+def _confidence(force_norm: float, threshold: float) -> float:
+    """clip((|F| - threshold) / threshold, 0, 1); 1 for any force with no dead band."""
+    if threshold <= 0:
+        return 1.0 if force_norm > 0 else 0.0
+    return min(1.0, max(0.0, (force_norm - threshold) / threshold))
+
+
 def make_controller(
     name: str,
     policy: ConstraintAwarePolicy | None = None,
@@ -117,14 +268,17 @@ def make_controller(
     rotation_axis: FloatArray | None = None,
     params: dict[str, float] | None = None,
 ) -> DirectionController:
-    """A controller by name: policy, fixed, projection or classical.
+    """A controller by name: policy, steady, fixed, projection or classical.
 
     rotation_rate [rad/s] and rotation_axis (3,) give the classical controller its rotational
-    part (revolute tasks); the other controllers leave hand rotation to the executor. params:
-    the classical controller's gains (ClassicalGains fields).
+    part (revolute tasks), and "steady" (the policy controller in `SteadyDirection`) its
+    feed-forward; the other controllers leave hand rotation to the executor. params: the
+    classical controller's gains (ClassicalGains fields).
     """
     if name == "policy":
         return PolicyController(policy)
+    if name == "steady":
+        return SteadyDirection(PolicyController(policy), rotation_rate)
     if name == "fixed":
         return FixedDirection()
     if name == "projection":
@@ -137,7 +291,7 @@ def make_controller(
     raise UnknownNameError("controller", name, list(CONTROLLERS))
 
 
-CONTROLLERS = ("policy", "fixed", "projection", "classical")
+CONTROLLERS = ("policy", "steady", "fixed", "projection", "classical")
 
 
 def project_on_plane(direction: FloatArray, normal: FloatArray | None) -> FloatArray:

@@ -534,6 +534,7 @@ class Executor:
             st.threshold,
             st.normal,
             None if st.stiffness is None else st.stiffness * cfg.step_length,
+            fixed_orientation=st.torque_policy is not None,
         )
         raw = np.asarray(self.controller.next_direction(inp), dtype=float)
         if raw.shape != (3,) or not np.all(np.isfinite(raw)) or np.linalg.norm(raw) < 1e-9:

@@ -1,0 +1,187 @@
+"""Issue 9's force gaps: where the default policy's contact force comes from, and what steadies it.
+
+    nice -n 10 python benchmarks/forces.py [--seeds 20] [--map-seeds 2] [--out benchmarks/results]
+
+Runs (bench/forces.py): the policy's one-step turn against small forces; a per-run diagnosis
+of door and drawer (default, classical, steady; the paper's offset and suite seeds 0-4:
+transient vs steady force, the steady lag and zig-zag against the path's turn delta/r); the
+20-seed randomized suite and the paper's offsets for every variant, the paper's offsets over
+10 sensor-noise seeds for default, classical and steady; the resistance map for default,
+classical, steady and steady without the known rate. Writes forces.json (typed results) and
+forces.md (tables rendered from the JSON). One process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from constraint_aware.bench.analysis import (
+    Condition,
+    paper_offset_conditions,
+    resistance_map,
+    suite_conditions,
+)
+from constraint_aware.bench.forces import (
+    STEADY_FROM,
+    TRANSIENT_STEPS,
+    VARIANTS,
+    RunDiagnosis,
+    VariantSummary,
+    probe_turns,
+    run_variant,
+    summarize,
+    summary_from_dict,
+    table_lines,
+)
+from constraint_aware.policy import ConstraintAwarePolicy
+
+DIAGNOSED = ("default", "classical", "steady")
+MAP_VARIANTS = ("default", "classical", "steady", "steady: no known rate")
+MAIN_VARIANTS = ("default", "classical", "steady")
+
+
+def _runs(
+    conds: list[tuple[Condition, int]], variants: tuple[str, ...], policy: ConstraintAwarePolicy
+) -> list[RunDiagnosis]:
+    return [run_variant(c, v, s, policy) for c, s in conds for v in variants]
+
+
+def render(data: dict[str, Any]) -> list[str]:
+    """forces.md from the JSON (the tables only read the typed results)."""
+
+    def cells(key: str) -> list[VariantSummary]:
+        return [summary_from_dict(c) for c in data[key]]
+
+    lines = [
+        "# Issue 9 force study (benchmarks/forces.py)",
+        "",
+        f"Policy: {data['policy']}. Cells: successes/runs, median peak |F| [N], mean |F| [N].",
+        "",
+        "## The policy's one-step turn [deg] (F = along * d + across * (n x d), k delta = 20 N,"
+        " dead band 0.4 N)",
+        "",
+        "| along N \\ across N | "
+        + " | ".join(f"{a:g}" for a in sorted({p["across_N"] for p in data["probe"]}))
+        + " |",
+    ]
+    acrosses = sorted({p["across_N"] for p in data["probe"]})
+    lines.append("|---|" + "---|" * len(acrosses))
+    for along in sorted({p["along_N"] for p in data["probe"]}, reverse=True):
+        row = {p["across_N"]: p for p in data["probe"] if p["along_N"] == along}
+        lines.append(
+            f"| {along:g} | " + " | ".join(f"{row[a]['turn_deg']:.1f}" for a in acrosses) + " |"
+        )
+    lines += [
+        "",
+        "Implied error asin(across / k delta): "
+        + ", ".join(
+            f"{p['across_N']:g} N: {p['implied_error_deg']:.1f}"
+            for p in data["probe"]
+            if p["along_N"] == 0.0
+        ),
+        "",
+        f"## Diagnosis (transient: steps < {TRANSIENT_STEPS}; steady: steps >= {STEADY_FROM})",
+        "",
+        "| task | variant | runs | peak | peak step | mean | transient mean | steady mean | "
+        "steady -F.d | steady lag deg | steady abs err deg | turn RMS deg | path turn deg "
+        "| slip deg |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for c in cells("diagnosis"):
+        lines.append(
+            f"| {c.task} | {c.variant} | {c.n} | {c.median_peak_force_N:.2f} | "
+            f"{c.median_peak_step:g} | {c.mean_force_N:.2f} | {c.transient_mean_force_N:.2f} | "
+            f"{c.steady_mean_force_N:.2f} | {c.steady_along_force_N:.2f} | "
+            f"{c.steady_lag_deg:.2f} | {c.steady_error_deg:.2f} | {c.turn_rms_deg:.2f} | "
+            f"{c.path_turn_deg:.2f} | {c.median_slip_deg:.1f} |"
+        )
+    variants = list(VARIANTS)
+    lines += ["", "## Randomized suite", "", *table_lines(cells("suite"), variants)]
+    lines += ["", "## The paper's offsets", "", *table_lines(cells("paper_offsets"), variants)]
+    lines += [
+        "",
+        "## The paper's offsets over sensor-noise seeds (same object, same offset)",
+        "",
+        *table_lines(cells("paper_offsets_noise_seeds"), MAIN_VARIANTS),
+    ]
+    lines += [
+        "",
+        "## Resistance map (paper offsets)",
+        "",
+        *table_lines(cells("resistance"), MAP_VARIANTS),
+        "",
+        "Outcomes other than success: "
+        + "; ".join(
+            f"{c.axis} {c.level:g} {c.task} {c.variant}: {c.outcomes}"
+            for c in cells("resistance")
+            if c.successes < c.n
+        ),
+    ]
+    return lines
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=20, help="suite seeds per task")
+    parser.add_argument("--map-seeds", type=int, default=2, help="seeds per resistance cell")
+    parser.add_argument("--diagnosis-seeds", type=int, default=5)
+    parser.add_argument("--noise-seeds", type=int, default=10, help="paper offsets, noise seeds")
+    parser.add_argument("--out", default=str(Path(__file__).parent / "results"))
+    args = parser.parse_args()
+    start = time.perf_counter()
+    policy = ConstraintAwarePolicy.load()
+    probe = probe_turns(policy)
+
+    diag_conds = [
+        (c, 0) for c in paper_offset_conditions() if c.task in ("door-opening", "drawer-opening")
+    ] + [
+        (dataclasses.replace(c, axis="diagnosis"), s)
+        for c, s in suite_conditions(args.diagnosis_seeds)
+        if c.task in ("door-opening", "drawer-opening")
+    ]
+    diag_conds = [(dataclasses.replace(c, axis="diagnosis", level=0.0), s) for c, s in diag_conds]
+    diagnosis_runs = _runs(diag_conds, DIAGNOSED, policy)
+    suite_runs = _runs(suite_conditions(args.seeds), tuple(VARIANTS), policy)
+    paper_runs = _runs([(c, 0) for c in paper_offset_conditions()], tuple(VARIANTS), policy)
+    # the paper's offsets again over sensor-noise seeds: how much one run's noise moves a cell
+    noise_runs = _runs(
+        [(c, s) for c in paper_offset_conditions() for s in range(args.noise_seeds)],
+        MAIN_VARIANTS,
+        policy,
+    )
+    map_runs = _runs(
+        [(c, s) for c in resistance_map() for s in range(args.map_seeds)], MAP_VARIANTS, policy
+    )
+    data: dict[str, Any] = {
+        "policy": policy.name,
+        "wall_time_s": time.perf_counter() - start,
+        "load_average_1_5_15": os.getloadavg(),
+        "probe": [dataclasses.asdict(p) for p in probe],
+        "diagnosis_runs": [dataclasses.asdict(r) for r in diagnosis_runs],
+        "diagnosis": [
+            dataclasses.asdict(c) for c in summarize(diagnosis_runs, aggregate_levels=True)
+        ],
+        "suite": [dataclasses.asdict(c) for c in summarize(suite_runs)],
+        "paper_offsets": [
+            dataclasses.asdict(c) for c in summarize(paper_runs, aggregate_levels=True)
+        ],
+        "paper_offsets_noise_seeds": [
+            dataclasses.asdict(c) for c in summarize(noise_runs, aggregate_levels=True)
+        ],
+        "resistance": [dataclasses.asdict(c) for c in summarize(map_runs)],
+    }
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "forces.json").write_text(json.dumps(data, indent=1) + "\n")
+    again = json.loads((out / "forces.json").read_text())
+    (out / "forces.md").write_text("\n".join(render(again)) + "\n")
+
+
+if __name__ == "__main__":
+    main()

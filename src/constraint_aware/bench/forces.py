@@ -1,0 +1,425 @@
+"""Where the policy's contact force comes from, and what steadies it (issue 9's force gaps).
+
+Typed from end to end: `run_variant` runs one controller variant on one `analysis.Condition`
+and returns a `RunDiagnosis` (the run's outcome and forces, split into the start transient and
+the steady part, and the steady direction error: its signed mean is the tracking lag, the
+step-to-step turn is the zig-zag); `summarize` groups them by their own keys into
+`VariantSummary`s. `benchmarks/forces.py` runs the study and writes JSON; the report reads it.
+
+Variants (`VARIANTS`): the default policy as the executor runs it today, the classical
+controller (unchanged gains), the projection controller, `SteadyDirection` around the policy
+with each of its parts alone and together, and around the projection controller (the wrapper
+is not specific to the policy); and two rejected candidates kept for their numbers: a
+curvature feed-forward estimated from d's own recent turns, and two policy sub-steps per
+control step.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from constraint_aware import deadband
+from constraint_aware.bench.analysis import Condition, PreloadSim
+from constraint_aware.control.controllers import (
+    HAND_SMOOTHING,
+    ControlInput,
+    DirectionController,
+    PolicyController,
+    ProjectionController,
+    SteadyConfig,
+    SteadyDirection,
+    make_controller,
+    turn_vector,
+)
+from constraint_aware.control.executor import Executor, orient_normal
+from constraint_aware.control.record import RunRecord
+from constraint_aware.control.simulate import NoisySensorSim, RunSpec, build_task, executor_config
+from constraint_aware.geometry import FloatArray, rotate_about, unit
+from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.sim.world import CONTROL_PERIOD
+
+#: Steps counted as the start transient (the initial offset's correction) ...
+TRANSIENT_STEPS = 5
+#: ... and the first step counted as steady (the transient has settled by then in every run).
+STEADY_FROM = 10
+
+#: A variant builds its controller from (policy, rotation rate [rad/s] or None, oriented
+#: workplane normal (3,)).
+ControllerFactory = Callable[[ConstraintAwarePolicy, float | None, FloatArray], DirectionController]
+
+
+def _steady(config: SteadyConfig, inner: str = "policy") -> ControllerFactory:
+    def build(
+        policy: ConstraintAwarePolicy, rate: float | None, normal: FloatArray
+    ) -> DirectionController:
+        base: DirectionController = (
+            PolicyController(policy) if inner == "policy" else ProjectionController()
+        )
+        return SteadyDirection(base, rate, config)
+
+    return build
+
+
+def _named(name: str) -> ControllerFactory:
+    def build(
+        policy: ConstraintAwarePolicy, rate: float | None, normal: FloatArray
+    ) -> DirectionController:
+        return make_controller(name, policy, rate, normal)
+
+    return build
+
+
+class EstimatedCurvature:
+    """Candidate (a), kept in the study only: d also turns by an exponential average
+    (HAND_SMOOTHING) of its own applied turns, a curvature feed-forward estimated from the
+    robot's recent motion with no geometry given; the hand follows paper 3.4.1 (the executor's
+    rule). Measured worse than the known rate: the initial offset's correction winds the
+    estimate up."""
+
+    def __init__(self, inner: DirectionController) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self._estimate = np.zeros(3)
+
+    def reset(self, direction: FloatArray) -> None:
+        self.inner.reset(direction)
+        self._estimate = np.zeros(3)
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        d = np.asarray(inp.direction, dtype=float)
+        proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
+        turn = turn_vector(d, unit(proposed)) + self._estimate
+        self._estimate = self._estimate + HAND_SMOOTHING * (turn - self._estimate)
+        return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
+
+    def step_length(self, nominal: float) -> float:
+        return self.inner.step_length(nominal)
+
+    def hand_rotation(self) -> Rotation | None:
+        return None
+
+
+class PolicySubSteps:
+    """Candidate (d), kept in the study only: the policy applied `n` times per control step on
+    the same force reading (each from the direction the last one gave). The diagnosis shows
+    the policy over-corrects small errors, so more correction per step is measured, not
+    expected to help."""
+
+    def __init__(self, inner: DirectionController, n: int = 2) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self.n = n
+
+    def reset(self, direction: FloatArray) -> None:
+        self.inner.reset(direction)
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        d = np.asarray(inp.direction, dtype=float)
+        for _ in range(self.n):
+            d = np.asarray(self.inner.next_direction(dataclasses.replace(inp, direction=d)))
+        return d
+
+    def step_length(self, nominal: float) -> float:
+        return self.inner.step_length(nominal)
+
+    def hand_rotation(self) -> Rotation | None:
+        return None
+
+
+def _wrapped(kind: str) -> ControllerFactory:
+    def build(
+        policy: ConstraintAwarePolicy, rate: float | None, normal: FloatArray
+    ) -> DirectionController:
+        inner = PolicyController(policy)
+        if kind == "curvature":
+            return EstimatedCurvature(inner)
+        return PolicySubSteps(inner, 2)
+
+    return build
+
+
+_OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False)
+
+#: label -> controller factory. "steady" is the full wrapper (controller "steady").
+VARIANTS: dict[str, ControllerFactory] = {
+    "default": _named("policy"),
+    "classical": _named("classical"),
+    "steady": _named("steady"),
+    "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
+    "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
+    "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),
+    "steady: smoothed hand only": _steady(_OFF),
+    "steady: no known rate": _steady(SteadyConfig(rotation_feedforward=False)),
+    "estimated curvature": _wrapped("curvature"),
+    "policy sub-steps x2": _wrapped("substeps"),
+    "projection": _named("projection"),
+    "projection + steady": _steady(SteadyConfig(), inner="projection"),
+}
+
+
+@dataclass(frozen=True)
+class RunDiagnosis:
+    """One run, measured from its step records. Forces [N], angles [deg]."""
+
+    condition: Condition
+    variant: str
+    seed: int
+    success: bool
+    outcome: str
+    n_steps: int
+    peak_force_N: float
+    peak_step: int
+    mean_force_N: float
+    transient_mean_force_N: float  # steps < TRANSIENT_STEPS
+    steady_mean_force_N: float  # steps >= STEADY_FROM (nan if the run is shorter)
+    steady_along_force_N: float  # mean of -F.d there: the object's resistance to the move
+    steady_across_force_N: float  # mean |F| across d in the workplane there
+    steady_lag_deg: float  # mean signed angle(truth -> d) about the workplane normal there
+    steady_error_deg: float  # median |angle(d, truth)| there
+    turn_rms_deg: float  # RMS of d's step-to-step turn there (the zig-zag)
+    path_turn_deg: float  # the object's turn per step, delta / r (revolute; 0 prismatic)
+    median_slip_deg: float  # hand-handle rotation drift, median over the run
+
+
+def _signed_deg(a: FloatArray, b: FloatArray, normal: FloatArray) -> float:
+    return math.degrees(math.atan2(float(np.cross(a, b) @ normal), float(a @ b)))
+
+
+def diagnose(
+    record: RunRecord, condition: Condition, variant: str, seed: int, normal: FloatArray,
+    path_turn_deg: float,
+) -> RunDiagnosis:  # fmt: skip
+    """The run's forces and direction errors from its step records."""
+    steps = [s for s in record.steps if math.isfinite(s.force_norm)]
+    forces = np.array([s.force_norm for s in steps])
+    steady = steps[STEADY_FROM:]
+    along, across, lag, err, turns = [], [], [], [], []
+    prev = None
+    for s in steady:
+        d = np.asarray(s.direction)
+        f = np.asarray(s.force)
+        across_dir = np.cross(normal, d)
+        along.append(-float(f @ d))
+        across.append(abs(float(f @ across_dir)))
+        if s.admissible_direction is not None:
+            lag.append(_signed_deg(np.asarray(s.admissible_direction), d, normal))
+            err.append(abs(s.angle_deg))
+        if prev is not None:
+            turns.append(_signed_deg(prev, d, normal))
+        prev = d
+
+    def mean(v: list[float]) -> float:
+        return float(np.mean(v)) if v else math.nan
+
+    slips = [s.slip_deg for s in steps if math.isfinite(s.slip_deg)]
+    return RunDiagnosis(
+        condition=condition,
+        variant=variant,
+        seed=seed,
+        success=record.success,
+        outcome=record.outcome,
+        n_steps=record.n_steps,
+        peak_force_N=float(forces.max()) if forces.size else 0.0,
+        peak_step=int(forces.argmax()) if forces.size else 0,
+        mean_force_N=float(forces.mean()) if forces.size else 0.0,
+        transient_mean_force_N=float(forces[:TRANSIENT_STEPS].mean()) if forces.size else 0.0,
+        steady_mean_force_N=float(forces[STEADY_FROM:].mean()) if steady else math.nan,
+        steady_along_force_N=mean(along),
+        steady_across_force_N=mean(across),
+        steady_lag_deg=mean(lag),
+        steady_error_deg=float(np.median(err)) if err else math.nan,
+        turn_rms_deg=float(np.sqrt(np.mean(np.square(turns)))) if turns else math.nan,
+        path_turn_deg=path_turn_deg,
+        median_slip_deg=float(np.median(slips)) if slips else math.nan,
+    )
+
+
+def run_variant(
+    cond: Condition,
+    variant: str,
+    seed: int,
+    policy: ConstraintAwarePolicy | None = None,
+    sensor_noise: float = 0.1,
+) -> RunDiagnosis:
+    """One closed-loop run of a `VARIANTS` label on `cond`, as bench.analysis.run_condition
+    runs the policy section (dead band derived from the noise, the preload robot when asked),
+    with the revolute workplane normal oriented from the hinge for every controller."""
+    policy = policy or ConstraintAwarePolicy.load()
+    spec = RunSpec(
+        cond.task, "policy", cond.offset_deg, seed=seed, randomize=cond.randomize,
+        sensor_noise=sensor_noise, overrides=cond.overrides,
+    )  # fmt: skip
+    task = build_task(spec)
+    rng = np.random.default_rng(spec.seed + 7919)
+    sim: NoisySensorSim
+    if cond.preload_N > 0:
+        sim = PreloadSim(task, rng, sensor_noise, preload=np.zeros(3))
+    else:
+        sim = NoisySensorSim(task, rng, sensor_noise)
+    sim.reset()
+    threshold = deadband.threshold_from_noise(sensor_noise)
+    cfg = dataclasses.replace(executor_config(task), threshold=threshold)
+    assert cfg.workplane_normal is not None
+    normal = np.asarray(cfg.workplane_normal, dtype=float)
+    u = sim.admissible_direction()
+    if isinstance(sim, PreloadSim):
+        sim.preload = cond.preload_N * u
+    d0 = rotate_about(u, normal, math.radians(cond.offset_deg))
+    rate = None
+    path_turn = 0.0
+    if cfg.constraint_type == "revolute" and cfg.rotation_radius:
+        rate = cfg.step_length / CONTROL_PERIOD / cfg.rotation_radius  # w_d = v_d / r
+        path_turn = math.degrees(cfg.step_length / cfg.rotation_radius)
+    if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
+        normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
+    ctrl = VARIANTS[variant](policy, rate, normal)
+    record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
+    return diagnose(record, cond, variant, seed, normal, path_turn)
+
+
+@dataclass(frozen=True)
+class VariantSummary:
+    """One (experiment axis, level, task, variant) cell: medians and means over its runs."""
+
+    axis: str
+    level: float
+    task: str
+    variant: str
+    n: int
+    successes: int
+    outcomes: dict[str, int]
+    median_peak_force_N: float
+    mean_force_N: float  # mean over runs of each run's mean |F|
+    transient_mean_force_N: float
+    steady_mean_force_N: float
+    steady_along_force_N: float
+    steady_lag_deg: float
+    steady_error_deg: float
+    turn_rms_deg: float
+    median_peak_step: float
+    median_slip_deg: float
+    path_turn_deg: float
+
+
+def _nanmean(values: Iterable[float]) -> float:
+    v = [x for x in values if math.isfinite(x)]
+    return float(np.mean(v)) if v else math.nan
+
+
+def _nanmedian(values: Iterable[float]) -> float:
+    v = [x for x in values if math.isfinite(x)]
+    return float(np.median(v)) if v else math.nan
+
+
+def summarize(runs: Iterable[RunDiagnosis], aggregate_levels: bool = False) -> list[VariantSummary]:
+    """One summary per (axis, level, task, variant), sorted by those keys (never by the order
+    the runs came in); aggregate_levels: one cell per (axis, task, variant), level 0."""
+    groups: dict[tuple[str, float, str, str], list[RunDiagnosis]] = {}
+    for r in runs:
+        level = 0.0 if aggregate_levels else r.condition.level
+        groups.setdefault((r.condition.axis, level, r.condition.task, r.variant), []).append(r)
+    order = {name: i for i, name in enumerate(VARIANTS)}
+    out = []
+    for key in sorted(groups, key=lambda k: (k[0], k[2], k[1], order.get(k[3], 99))):
+        rows = sorted(groups[key], key=lambda r: (r.seed, r.condition.offset_deg))
+        outcomes: dict[str, int] = {}
+        for r in rows:
+            outcomes[r.outcome] = outcomes.get(r.outcome, 0) + 1
+        out.append(
+            VariantSummary(
+                axis=key[0],
+                level=key[1],
+                task=key[2],
+                variant=key[3],
+                n=len(rows),
+                successes=sum(r.success for r in rows),
+                outcomes=dict(sorted(outcomes.items())),
+                median_peak_force_N=float(np.median([r.peak_force_N for r in rows])),
+                mean_force_N=float(np.mean([r.mean_force_N for r in rows])),
+                transient_mean_force_N=_nanmean(r.transient_mean_force_N for r in rows),
+                steady_mean_force_N=_nanmean(r.steady_mean_force_N for r in rows),
+                steady_along_force_N=_nanmean(r.steady_along_force_N for r in rows),
+                steady_lag_deg=_nanmean(r.steady_lag_deg for r in rows),
+                steady_error_deg=_nanmedian(r.steady_error_deg for r in rows),
+                turn_rms_deg=_nanmean(r.turn_rms_deg for r in rows),
+                median_peak_step=float(np.median([r.peak_step for r in rows])),
+                median_slip_deg=_nanmedian(r.median_slip_deg for r in rows),
+                path_turn_deg=rows[0].path_turn_deg,
+            )
+        )
+    return out
+
+
+def summary_from_dict(data: dict[str, object]) -> VariantSummary:
+    """A `VariantSummary` back from its JSON form (dataclasses.asdict)."""
+    return VariantSummary(**data)  # type: ignore[arg-type]
+
+
+def table_lines(cells: list[VariantSummary], variants: Iterable[str]) -> list[str]:
+    """A markdown table: one row per (axis, level, task), a column per variant with
+    "successes/n, median peak |F|, mean |F|"."""
+    variants = list(variants)
+    rows: dict[tuple[str, float, str], dict[str, VariantSummary]] = {}
+    for c in cells:
+        rows.setdefault((c.axis, c.level, c.task), {})[c.variant] = c
+    lines = [
+        "| axis | level | task | " + " | ".join(variants) + " |",
+        "|---|---|---|" + "---|" * len(variants),
+    ]
+    for (axis, level, task), by in rows.items():
+        cols = []
+        for v in variants:
+            cell = by.get(v)
+            cols.append(
+                "" if cell is None else
+                f"{cell.successes}/{cell.n}, {cell.median_peak_force_N:.2f}, "
+                f"{cell.mean_force_N:.2f}"
+            )  # fmt: skip
+        lines.append(f"| {axis} | {level:g} | {task} | " + " | ".join(cols) + " |")
+    return lines
+
+
+#: The probe's forces [N]: along -d (the object's resistance) and across d (the constraint
+#: force of a misaligned move), the scale of the door's and drawer's steady forces.
+PROBE_ALONG_N = (0.0, -0.5, -1.0, -2.0)
+PROBE_ACROSS_N = (0.2, 0.5, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0)
+
+
+@dataclass(frozen=True)
+class TurnProbe:
+    """The policy's one-step turn [deg] of d for F = along * d + across * (n x d)."""
+
+    along_N: float
+    across_N: float
+    turn_deg: float
+    implied_error_deg: float  # asin(across / step_force): the error a quasi-static blocked
+    # step would need to produce that force across d
+
+
+def probe_turns(
+    policy: ConstraintAwarePolicy, step_force: float = 20.0, threshold: float = 0.4
+) -> list[TurnProbe]:
+    """One update_direction per force from a fresh session (d = x, workplane normal z)."""
+    d = np.array([1.0, 0.0, 0.0])
+    out = []
+    for along in PROBE_ALONG_N:
+        for across in PROBE_ACROSS_N:
+            session = policy.session()
+            nxt = session.update_direction(
+                np.array([along, across, 0.0]), d, threshold=threshold, step_force=step_force
+            )
+            out.append(
+                TurnProbe(
+                    along,
+                    across,
+                    math.degrees(math.atan2(float(nxt[1]), float(nxt[0]))),
+                    math.degrees(math.asin(min(1.0, across / step_force))),
+                )
+            )
+    return out

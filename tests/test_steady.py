@@ -1,0 +1,165 @@
+"""SteadyDirection: the turn shaping around any direction controller (no MuJoCo here, except
+the one closed-loop run at the end)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from constraint_aware.control.controllers import (
+    ControlInput,
+    FixedDirection,
+    PolicyController,
+    SteadyConfig,
+    SteadyDirection,
+    make_controller,
+)
+from constraint_aware.errors import ConfigError
+from constraint_aware.geometry import FloatArray, rotate_about
+from constraint_aware.policy import ConstraintAwarePolicy
+
+N = np.array([0.0, 0.0, 1.0])
+X = np.array([1.0, 0.0, 0.0])
+DT = 0.1
+
+
+class Scripted:
+    """An inner controller that proposes the next turn [deg] about N from a script."""
+
+    name = "scripted"
+
+    def __init__(self, turns_deg: list[float]) -> None:
+        self.turns = list(turns_deg)
+
+    def reset(self, direction: FloatArray) -> None:
+        pass
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        return np.asarray(rotate_about(inp.direction, N, math.radians(self.turns.pop(0))))
+
+    def step_length(self, nominal: float) -> float:
+        return nominal
+
+    def hand_rotation(self) -> None:
+        return None
+
+
+def _inp(d: FloatArray, force: float = 5.0, threshold: float = 0.4, **kw: object) -> ControlInput:
+    f = np.array([0.0, force, 0.0])
+    return ControlInput(f, np.zeros(3), d, DT, threshold, N, **kw)  # type: ignore[arg-type]
+
+
+def _signed_deg(a: FloatArray, b: FloatArray) -> float:
+    return math.degrees(math.atan2(float(np.cross(a, b) @ N), float(a @ b)))
+
+
+def _applied(ctrl: SteadyDirection, n: int, **kw: object) -> list[float]:
+    d = X.copy()
+    ctrl.reset(d)
+    out = []
+    for _ in range(n):
+        nxt = ctrl.next_direction(_inp(d, **kw))  # type: ignore[arg-type]
+        out.append(_signed_deg(d, nxt))
+        d = nxt
+    return out
+
+
+def test_a_reversing_proposal_halves_the_gain_down_to_its_floor() -> None:
+    cfg = SteadyConfig(confidence_ramp=False, rotation_feedforward=False)
+    turns = _applied(SteadyDirection(Scripted([10.0, -10.0] * 6), config=cfg), 12)
+    assert turns[0] == pytest.approx(10.0)
+    assert turns[1] == pytest.approx(-5.0)  # reversal: gain 0.5
+    assert turns[2] == pytest.approx(2.5)
+    assert abs(turns[-1]) == pytest.approx(10.0 * cfg.min_gain)  # never below the floor
+
+
+def test_a_persistent_proposal_keeps_or_regains_the_full_gain() -> None:
+    cfg = SteadyConfig(confidence_ramp=False, rotation_feedforward=False)
+    turns = _applied(SteadyDirection(Scripted([10.0, -10.0] + [3.0] * 12), config=cfg), 14)
+    assert turns[1] == pytest.approx(-5.0)
+    assert turns[-1] == pytest.approx(3.0)  # 0.5 * 1.2^n reaches 1 and stays there
+    assert all(t > 0 for t in turns[2:])
+
+
+def test_the_confidence_ramp_scales_turns_between_one_and_two_dead_bands() -> None:
+    cfg = SteadyConfig(overshoot_damping=False, rotation_feedforward=False)
+    ctrl = SteadyDirection(Scripted([10.0] * 3), config=cfg)
+    assert _applied(ctrl, 1, force=0.45, threshold=0.4)[0] == pytest.approx(10 * 0.125)
+    ctrl = SteadyDirection(Scripted([10.0] * 3), config=cfg)
+    assert _applied(ctrl, 1, force=0.8, threshold=0.4)[0] == pytest.approx(10.0)
+    ctrl = SteadyDirection(Scripted([10.0] * 3), config=cfg)
+    assert _applied(ctrl, 1, force=0.3, threshold=0.0)[0] == pytest.approx(10.0)
+
+
+def test_a_known_rotation_rate_turns_d_between_moves_and_the_hand_every_step() -> None:
+    radius = 0.5
+    rate = 0.01 / DT / radius  # [rad/s]: 1 cm per period on a 0.5 m radius
+    ctrl = SteadyDirection(FixedDirection(), rate)
+    d = X.copy()
+    ctrl.reset(d)
+    step_deg = math.degrees(rate * DT)
+    for i in range(4):
+        nxt = ctrl.next_direction(_inp(d))
+        # no turn before the first move: the path turns between consecutive moves
+        assert _signed_deg(d, nxt) == pytest.approx(0.0 if i == 0 else step_deg)
+        hand = ctrl.hand_rotation()
+        assert hand is not None
+        assert np.allclose(hand.as_rotvec(), rate * DT * N)
+        d = nxt
+
+
+def test_the_hand_is_left_to_the_torque_policy_on_a_fixed_orientation_grasp() -> None:
+    ctrl = SteadyDirection(FixedDirection(), 0.2)
+    ctrl.reset(X)
+    ctrl.next_direction(_inp(X, fixed_orientation=True))
+    assert ctrl.hand_rotation() is None
+
+
+def test_without_a_rate_the_hand_turns_by_the_smoothed_applied_turn() -> None:
+    cfg = SteadyConfig(confidence_ramp=False, overshoot_damping=False)
+    ctrl = SteadyDirection(Scripted([2.0] * 30), config=cfg)
+    d = X.copy()
+    ctrl.reset(d)
+    angles = []
+    for _ in range(30):
+        d = ctrl.next_direction(_inp(d))
+        hand = ctrl.hand_rotation()
+        assert hand is not None
+        angles.append(math.degrees(float(hand.as_rotvec() @ N)))
+    assert angles[0] == pytest.approx(2.0 * cfg.hand_smoothing)  # smoothed, not each step's
+    assert angles[-1] == pytest.approx(2.0, abs=1e-3)  # a steady turn is followed fully
+
+
+def test_a_non_finite_proposal_passes_through_for_the_executor_to_stop_on() -> None:
+    class Broken(FixedDirection):
+        def next_direction(self, inp: ControlInput) -> FloatArray:
+            return np.array([math.nan, 0.0, 0.0])
+
+    out = SteadyDirection(Broken()).next_direction(_inp(X))
+    assert not np.all(np.isfinite(out))
+
+
+def test_config_fields_are_validated_by_name() -> None:
+    with pytest.raises(ConfigError, match=r"SteadyConfig\.min_gain"):
+        SteadyConfig(min_gain=0.0)
+    with pytest.raises(ConfigError, match=r"SteadyConfig\.recovery_factor"):
+        SteadyConfig(recovery_factor=0.5)
+
+
+def test_make_controller_keeps_the_policy_controller_and_wraps_only_steady() -> None:
+    paper = ConstraintAwarePolicy.load("paper")
+    plain = make_controller("policy", paper)
+    assert isinstance(plain, PolicyController)  # the paper's controller, unchanged
+    steady = make_controller("steady", paper, rotation_rate=0.2)
+    assert isinstance(steady, SteadyDirection)
+    assert isinstance(steady.inner, PolicyController)
+    assert steady.rotation_rate == 0.2
+
+
+def test_steady_opens_the_door_in_closed_loop() -> None:
+    from constraint_aware.control.simulate import RunSpec, run
+
+    record, _ = run(RunSpec("door-opening", "steady", 15.0, seed=0))
+    assert record.success, record.reason
