@@ -1,11 +1,18 @@
-"""Wall time of `cap train` until the evaluation mean angle is <= a target.
+"""Wall time of `cap train` until the evaluation mean angle is <= a target, new vs old preset.
 
     python benchmarks/train_time.py [--preset default] [--target 3.0] [--seeds 0 1 2]
+                                    [--no-baseline] [--baseline-seeds 0]
+                                    [--baseline-threads 1] [--json PATH]
 
 Runs the real command line in a subprocess per seed, on however many cores torch is given
-(the presets use 2 threads). Prints JSON with each run and the median over seeds, and the
-machine's load average before and after (the machine may be shared: a load above the core
-count means the time is not the training's alone). --json also writes it to a file.
+(the preset's `torch_threads`). For each seed it runs the preset and then, unless
+--no-baseline, the default preset as it was at stop 15 (`BASELINE_PRESET` +
+`BASELINE_FLAGS`: 2x256 net, 10 epochs, constant learning rate, k uniform in 1000-3000 N/m),
+so the two share the machine's load and their ratio means
+something on a shared machine. Prints JSON with each run, the medians over seeds, the median
+of the per-seed ratios new/old, and the machine's load average before and after (a load
+above the core count means the times are not the training's alone). Each run also records the
+standard evaluation (no resistance, 10,000 episodes) of the policy it stopped with.
 """
 
 from __future__ import annotations
@@ -19,6 +26,55 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
+
+#: The `default` preset of stop 15 (commit 1a89c01, 81.5 s to 3 deg on a quiet machine):
+#: today's `fast` preset (2x256, 10 epochs, constant learning rate 1e-3, 1.2 M steps) in the
+#: stop-15 training environment (resistance, magnitude observation, k uniform in 1000-3000 N/m).
+BASELINE_PRESET = "fast"
+BASELINE_FLAGS = (
+    "--env.observation", "magnitude", "--env.resistance-free-share", "0.5",
+    "--env.dry-friction", "0", "0.3", "--env.dry-friction-abs", "0", "1",
+    "--env.damping", "0", "0.1", "--env.inertia", "0", "0.1", "--env.preload", "0", "0.3",
+    "--env.step-force-unknown-share", "0.25",
+)  # fmt: skip
+#: torch threads of the stop-15 preset (its 81.5 s were measured with 2 on a quiet machine).
+BASELINE_THREADS = 2
+
+
+def run_once(preset: str, seed: int, target: float, extra: tuple[str, ...]) -> dict[str, Any]:
+    """One `cap train` to `target` [deg]; times from the card and from the process."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [
+            sys.executable, "-m", "constraint_aware.cli", "train", "--preset", preset,
+            "--seed", str(seed), "--target-angle", str(target), "--out", tmp,
+            "--quiet", "--final-episodes", "10000", *extra,
+        ]  # fmt: skip
+        start = time.perf_counter()
+        subprocess.run(cmd, check=True, capture_output=True)
+        process_s = time.perf_counter() - start
+        card = json.loads((Path(tmp) / "policy.json").read_text())
+    standard = card.get("metrics_standard", card["metrics"])["policy"]
+    return {
+        "seed": seed,
+        "target_reached_s": card["target_reached_s"],
+        "process_wall_s": process_s,
+        "timesteps": card["total_timesteps"],
+        "steps_per_s": card["total_timesteps"] / card["wall_time_s"],
+        "final_mean_angle_deg": card["metrics"]["policy"]["mean_final_angle_deg"],
+        "standard_mean_angle_deg": standard["mean_final_angle_deg"],
+    }
+
+
+def summary(runs: list[dict[str, Any]]) -> dict[str, Any]:
+    reached = [r["target_reached_s"] for r in runs if r["target_reached_s"] is not None]
+    return {
+        "runs": runs,
+        "reached": f"{len(reached)}/{len(runs)}",
+        "median_target_reached_s": statistics.median(reached) if reached else None,
+        "median_process_wall_s": statistics.median(r["process_wall_s"] for r in runs),
+        "median_steps_per_s": statistics.median(r["steps_per_s"] for r in runs),
+    }
 
 
 def main() -> None:
@@ -26,45 +82,47 @@ def main() -> None:
     parser.add_argument("--target", type=float, default=3.0, help="[deg]")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--preset", default="default")
+    parser.add_argument("--no-baseline", action="store_true", help="skip the stop-15 preset")
+    parser.add_argument(
+        "--baseline-seeds", type=int, nargs="*", help="seeds of the baseline (default: --seeds)"
+    )
+    parser.add_argument(
+        "--baseline-threads",
+        type=int,
+        default=BASELINE_THREADS,
+        help="torch threads of the baseline (on a busy machine 1: a second thread stalls)",
+    )
     parser.add_argument("--json", help="also write the result here")
     args = parser.parse_args()
     load_before = os.getloadavg()
-    runs = []
-    for seed in args.seeds:
-        with tempfile.TemporaryDirectory() as tmp:
-            cmd = [
-                sys.executable, "-m", "constraint_aware.cli", "train", "--preset", args.preset,
-                "--seed", str(seed), "--target-angle", str(args.target), "--out", tmp,
-                "--quiet", "--final-episodes", "10000",
-            ]  # fmt: skip
-            start = time.perf_counter()
-            subprocess.run(cmd, check=True, capture_output=True)
-            process_s = time.perf_counter() - start
-            card = json.loads((Path(tmp) / "policy.json").read_text())
-        runs.append(
-            {
-                "seed": seed,
-                "target_reached_s": card["target_reached_s"],
-                "process_wall_s": process_s,
-                "timesteps": card["total_timesteps"],
-                "final_mean_angle_deg": card["metrics"]["policy"]["mean_final_angle_deg"],
-            }
-        )
-    reached = [r["target_reached_s"] for r in runs if r["target_reached_s"] is not None]
-    text = json.dumps(
-        {
-            "cores": os.cpu_count(),
-            "load_average_1_5_15_before": load_before,
-            "load_average_1_5_15_after": os.getloadavg(),
-            "preset": args.preset,
-            "target_deg": args.target,
-            "runs": runs,
-            "reached": f"{len(reached)}/{len(runs)}",
-            "median_target_reached_s": statistics.median(reached) if reached else None,
-            "median_process_wall_s": statistics.median(r["process_wall_s"] for r in runs),
-        },
-        indent=2,
-    )
+    new: list[dict[str, Any]] = []
+    old: list[dict[str, Any]] = []
+    baseline_seeds = args.seeds if args.baseline_seeds is None else args.baseline_seeds
+    baseline = (*BASELINE_FLAGS, "--torch-threads", str(args.baseline_threads))
+    for seed in args.seeds:  # interleaved: new and old see the same load
+        new.append(run_once(args.preset, seed, args.target, ()))
+        if not args.no_baseline and seed in baseline_seeds:
+            old.append(run_once(BASELINE_PRESET, seed, args.target, baseline))
+    result: dict[str, Any] = {
+        "cores": os.cpu_count(),
+        "load_average_1_5_15_before": load_before,
+        "load_average_1_5_15_after": os.getloadavg(),
+        "preset": args.preset,
+        "target_deg": args.target,
+        **summary(new),
+    }
+    if old:
+        by_seed = {n["seed"]: n for n in new}
+        ratios = [
+            by_seed[o["seed"]]["target_reached_s"] / o["target_reached_s"]
+            for o in old
+            if by_seed[o["seed"]]["target_reached_s"] is not None
+            and o["target_reached_s"] is not None
+        ]
+        result["baseline"] = {"preset": BASELINE_PRESET, "flags": list(baseline), **summary(old)}
+        result["per_seed_ratio_new_over_old"] = ratios
+        result["median_ratio_new_over_old"] = statistics.median(ratios) if ratios else None
+    text = json.dumps(result, indent=2)
     print(text)
     if args.json:
         Path(args.json).write_text(text + "\n")

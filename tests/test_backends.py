@@ -33,6 +33,18 @@ def test_backends_agree_on_standard_states(rng: np.random.Generator) -> None:
     assert rel < 0.01
 
 
+def test_backends_agree_over_the_wide_stiffness_range(rng: np.random.Generator) -> None:
+    """The default policy's training range: k log-uniform in 500-20,000 N/m (a soft wrist to
+    the Jaco's stiff variants); the MuJoCo spring settles at both ends."""
+    env = SingleSystemBatch(300, EnvConfig(stiffness=(500.0, 20_000.0), stiffness_log_uniform=True))
+    env.reset(rng)
+    p = env.params
+    assert p.stiffness.min() < 1000.0 and p.stiffness.max() > 10_000.0
+    ang, rel = _agreement(p.axis, env.direction, p.friction, p.stiffness)
+    assert ang < 0.01
+    assert rel < 0.01
+
+
 def test_backends_agree_when_friction_holds_the_body(rng: np.random.Generator) -> None:
     n = 50
     env = SingleSystemBatch(n, EnvConfig())

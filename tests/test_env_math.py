@@ -220,6 +220,18 @@ def test_history_and_magnitude_observations(rng: np.random.Generator) -> None:
     assert 0.2 < np.mean(obs[:, 6] == 0.0) < 0.3
 
 
+def test_log_uniform_stiffness_spreads_over_decades() -> None:
+    """k ~ log-uniform(500, 20,000): the median is the geometric mean (3162 N/m), and each
+    decade gets its share (a uniform draw would put 97 % of episodes above 1000 N/m)."""
+    config = EnvConfig(stiffness=(500.0, 20_000.0), stiffness_log_uniform=True)
+    env = SingleSystemBatch(20_000, config)
+    env.reset(np.random.default_rng(0))
+    k = env.params.stiffness
+    assert k.min() >= 500.0 and k.max() <= 20_000.0
+    assert abs(np.median(k) / np.sqrt(500.0 * 20_000.0) - 1.0) < 0.05
+    assert abs(np.mean(k < 1000.0) - np.log(2.0) / np.log(40.0)) < 0.02
+
+
 @pytest.mark.parametrize(
     ("field", "value"),
     [

@@ -13,6 +13,7 @@ sensor frame rotated 90 deg about the workplane normal, a sensor that reads noth
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from constraint_aware.control.controllers import FixedDirection, PolicyControlle
 from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.record import RunRecord
 from constraint_aware.geometry import rotate_about
+from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.spatial import Pose, Wrench
 
 U = np.array([1.0, 0.0, 0.0])
@@ -121,8 +123,19 @@ HOLD = ExecutorConfig().offset_samples - 1
 GOAL = ExecutorConfig(goal_travel=0.2)
 
 
+#: The policy these guard tests were written with (the stop-15 default). The retrained default
+#: aligns d on this frictionless, resistance-free guide to 0.1 deg, where |F| (0.04 N) stays
+#: under the dead band and the executor reads `contact_lost` after 5 steps: a limit of the
+#: idealized guide (a real joint resists), not of the guards tested here.
+GUARD_TEST_POLICY = Path(__file__).resolve().parent / "data" / "stop15_default.npz"
+
+
 def run(robot: LaggingGuide, offset: float = 30.0, policy: bool = True) -> RunRecord:
-    controller = PolicyController() if policy else FixedDirection()
+    controller = (
+        PolicyController(ConstraintAwarePolicy.load(GUARD_TEST_POLICY))
+        if policy
+        else FixedDirection()
+    )
     return Executor(robot, controller, GOAL).run(d0(offset))  # type: ignore[arg-type]
 
 

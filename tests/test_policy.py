@@ -62,12 +62,7 @@ def test_paper_weights_are_unchanged() -> None:
 @pytest.mark.parametrize(
     "policy",
     [
-        pytest.param(
-            POLICY,
-            marks=pytest.mark.xfail(
-                strict=True, reason="measured 2.59 deg (issue 9's bar 2.2): more training needed"
-            ),
-        ),
+        POLICY,
         PAPER,
     ],
     ids=["default", "paper"],

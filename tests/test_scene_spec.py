@@ -35,6 +35,7 @@ from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor, orient_normal
 from constraint_aware.control.simulate import NoisySensorSim, executor_config
 from constraint_aware.geometry import rotate_about
+from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.tasks import TASKS, TaskConfig, object_for, task_config, task_from_object
 from constraint_aware.sim.world import build_spec
 
@@ -131,8 +132,13 @@ def model_properties(model: mujoco.MjModel) -> dict[str, Any]:
     return props
 
 
+#: The default policy the snapshot's rollouts were written with (stop 15; the shipped default
+#: has since been retrained): the rollouts compare scenes, so the policy stays fixed.
+SNAPSHOT_POLICY = Path(__file__).resolve().parent / "data" / "stop15_default.npz"
+
+
 def rollout(task: TaskConfig) -> dict[str, Any]:
-    """A short seeded run of the default policy from 10 deg off the admissible direction,
+    """A short seeded run of the snapshot's policy from 10 deg off the admissible direction,
     with the simulated sensor's noise (as `cap run`)."""
     task = dataclasses.replace(task, max_steps=ROLLOUT_STEPS)
     sim = NoisySensorSim(task, np.random.default_rng(ROLLOUT_SEED), noise=0.1)
@@ -146,7 +152,8 @@ def rollout(task: TaskConfig) -> dict[str, Any]:
         normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
         assert cfg.rotation_radius is not None
         rate = cfg.step_length / sim.control_period / cfg.rotation_radius
-    controller = make_controller("policy", None, rate, normal, {})
+    policy = ConstraintAwarePolicy.load(SNAPSHOT_POLICY)
+    controller = make_controller("policy", policy, rate, normal, {})
     record = Executor(sim, controller, cfg, monitor=sim).run(d0, {"task": task.name}).to_dict()
     keep = ("outcome", "reason", "success", "progress", "slip_m", "slip_deg", "force_offset")
     fields = ("direction", "force", "torque", "hand_position", "handle_position", "progress")

@@ -60,6 +60,8 @@ def test_same_seed_same_weights(tmp_path: Path) -> None:
         ("n_envs", 0),
         ("learning_rate", 0.0),
         ("learning_rate", float("nan")),
+        ("final_learning_rate", -1e-4),
+        ("final_learning_rate", float("inf")),
         ("batch_size", 10**9),
         ("n_epochs", 0),
         ("gamma", 1.5),
@@ -82,3 +84,30 @@ def test_default_preset_trains_with_resistance() -> None:
     config = make_config("default")
     assert config.env.has_resistance
     assert config.env.resistance_free_share == 0.5
+    assert config.env.stiffness == (500.0, 20_000.0) and config.env.stiffness_log_uniform
+
+
+def test_shipped_default_was_trained_by_the_default_preset() -> None:
+    """The card's training config is the preset's (torch threads aside), so `cap train
+    --preset default --seed 0 --torch-threads N` retrains the shipped policy."""
+    import json
+
+    card = ConstraintAwarePolicy.load("default").card
+    preset = make_config("default", torch_threads=card["train_config"]["torch_threads"])
+    assert card["train_config"] == json.loads(json.dumps(preset.to_dict()))
+    assert card["seed"] == 0
+
+
+def test_final_learning_rate_anneals_linearly() -> None:
+    """final_learning_rate: Adam's step size falls linearly from learning_rate at step 0 to it
+    at total_timesteps (SB3's progress_remaining 1 -> 0); None keeps it constant."""
+    from constraint_aware.training.ppo import build_model
+    from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
+
+    config = make_config("fast", n_envs=200, batch_size=100, final_learning_rate=1e-4)
+    model = build_model(BatchedSingleSystemVecEnv(config.n_envs, config.env), config)
+    assert model.lr_schedule(1.0) == pytest.approx(config.learning_rate)
+    assert model.lr_schedule(0.5) == pytest.approx((config.learning_rate + 1e-4) / 2)
+    assert model.lr_schedule(0.0) == pytest.approx(1e-4)
+    constant = build_model(BatchedSingleSystemVecEnv(200, config.env), make_config("fast"))
+    assert constant.lr_schedule(0.0) == pytest.approx(make_config("fast").learning_rate)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import gymnasium as gym
@@ -92,7 +93,11 @@ class SingleSystemBatch:
         magnitude = rng.uniform(*c.offset_deg, size=n)
         sign = np.where(rng.random(n) < 0.5, -1.0, 1.0)
         friction = rng.uniform(*c.friction, size=n)  # draw order as before issue 9: same streams
-        stiffness = rng.uniform(*c.stiffness, size=n)
+        if c.stiffness_log_uniform:  # one draw per episode either way: the same streams
+            low, high = math.log(c.stiffness[0]), math.log(c.stiffness[1])
+            stiffness = np.exp(rng.uniform(low, high, size=n))
+        else:
+            stiffness = rng.uniform(*c.stiffness, size=n)
         params = EpisodeParams(
             axis=axis,
             workplane_normal=normal,
