@@ -209,23 +209,7 @@ def test_paper_tasks_with_the_policy_on_the_arm(
     assert sim.translational_stiffness == 1000.0
 
 
-@pytest.mark.parametrize(
-    "task",
-    [
-        *(t for t in PAPER_OFFSETS if t != "door-opening"),
-        pytest.param(
-            "door-opening",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="with every guard the door at +15 deg stops not_following at step 52 "
-                "(50 deg of 60): along the door's arc the arm's apparent mass grows (6.6 -> 14 "
-                "kg along x), its lag with it (~2.3 cm), beyond the lag the reported "
-                "tracking_time_constant (one number, measured at the grasp) credits; remove "
-                "this mark when it succeeds",
-            ),
-        ),
-    ],
-)
+@pytest.mark.parametrize("task", PAPER_OFFSETS)
 def test_paper_tasks_with_the_policy_on_the_arm_and_every_executor_guard(task: str) -> None:
     spec = RunSpec(task, robot="jaco", controller="policy", offset_deg=PAPER_OFFSETS[task])
     record, _ = run(spec)

@@ -91,19 +91,7 @@ def test_the_lag_model_still_catches_the_faults(task: str, fault: str) -> None:
     [
         ("drawer-opening", 30.0, 500.0),
         ("pole-pulling", -30.0, 500.0),
-        pytest.param(
-            "handle-rotating",
-            15.0,
-            8000.0,
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="the retrained default (train branch) turns the handle with less "
-                "constraint force, so the handle's push along the move dominates F (median "
-                "F.d/|F| 0.30 over 5 moves) and the self-check stops it `sensor_convention` "
-                "(peak 14 N); the stop-15 default and the -15 deg offset succeed; remove this "
-                "mark when the self-check allows for it",
-            ),
-        ),
+        ("handle-rotating", 15.0, 8000.0),
     ],
 )
 def test_a_lagging_or_stiff_hand_reporting_its_lag_is_not_stopped(
