@@ -20,9 +20,9 @@ import numpy as np
 from constraint_aware import deadband
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.controllers import make_controller
-from constraint_aware.control.executor import Executor
+from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.simulate import NoisySensorSim, RunSpec, build_task, executor_config
-from constraint_aware.geometry import rotate_about
+from constraint_aware.geometry import FloatArray, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.tasks import TASKS, task_config
 from constraint_aware.sim.world import CONTROL_PERIOD
@@ -95,6 +95,46 @@ class PreloadSim(NoisySensorSim):
         return Wrench(force=w.force + self.preload, torque=w.torque)
 
 
+@dataclass
+class PreparedRun:
+    """A condition's simulator, reset, with the executor config and the run's inputs.
+
+    normal: (3,) the workplane normal as configured (not yet oriented from the hinge);
+    d0: (3,) the initial direction, the admissible one turned by the condition's offset;
+    rotation_rate: [rad/s] v / r on revolute joints (what the classical controller is
+    given), else None."""
+
+    sim: NoisySensorSim
+    config: ExecutorConfig
+    normal: FloatArray
+    d0: FloatArray
+    rotation_rate: float | None
+
+
+def prepare_condition(cond: Condition, spec: RunSpec, threshold: float) -> PreparedRun:
+    """The shared set-up of one policy-section run (and of the force study's): the task from
+    `spec`, the preload robot when `cond.preload_N` > 0, the dead band `threshold` [N]."""
+    task = build_task(spec)
+    rng = np.random.default_rng(spec.seed + 7919)
+    sensor_noise = spec.sensor_noise
+    if cond.preload_N > 0:
+        sim: NoisySensorSim = PreloadSim(task, rng, sensor_noise, preload=np.zeros(3))
+    else:
+        sim = NoisySensorSim(task, rng, sensor_noise)
+    sim.reset()
+    cfg = dataclasses.replace(executor_config(task), threshold=threshold)
+    assert cfg.workplane_normal is not None
+    normal = np.asarray(cfg.workplane_normal, dtype=float)
+    u = sim.admissible_direction()
+    if isinstance(sim, PreloadSim):
+        sim.preload = cond.preload_N * u
+    d0 = rotate_about(u, normal, math.radians(spec.offset_deg))
+    rate = None
+    if cfg.constraint_type == "revolute" and cfg.rotation_radius:
+        rate = cfg.step_length / CONTROL_PERIOD / cfg.rotation_radius  # w_d = v_d / r
+    return PreparedRun(sim, cfg, normal, d0, rate)
+
+
 def run_condition(
     cond: Condition,
     controller: str,
@@ -121,23 +161,8 @@ def run_condition(
     )
     if policy_name is not None:
         policy = ConstraintAwarePolicy.load(policy_name)
-    task = build_task(spec)
-    rng = np.random.default_rng(spec.seed + 7919)
-    if cond.preload_N > 0:
-        sim: NoisySensorSim = PreloadSim(task, rng, sensor_noise, preload=np.zeros(3))
-    else:
-        sim = NoisySensorSim(task, rng, sensor_noise)
-    sim.reset()
-    cfg = dataclasses.replace(executor_config(task), threshold=threshold)
-    assert cfg.workplane_normal is not None
-    normal = np.asarray(cfg.workplane_normal, dtype=float)
-    u = sim.admissible_direction()
-    if isinstance(sim, PreloadSim):
-        sim.preload = cond.preload_N * u
-    d0 = rotate_about(u, normal, math.radians(spec.offset_deg))
-    rate = None
-    if cfg.constraint_type == "revolute" and cfg.rotation_radius:
-        rate = cfg.step_length / CONTROL_PERIOD / cfg.rotation_radius
+    prep = prepare_condition(cond, spec, threshold)
+    sim, cfg, normal, d0, rate = prep.sim, prep.config, prep.normal, prep.d0, prep.rotation_rate
     ctrl = make_controller(name, policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
     return RunResult(

@@ -25,7 +25,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from constraint_aware import deadband
-from constraint_aware.bench.analysis import Condition, PreloadSim
+from constraint_aware.bench.analysis import Condition, prepare_condition
 from constraint_aware.control.controllers import (
     HAND_SMOOTHING,
     ControlInput,
@@ -39,10 +39,9 @@ from constraint_aware.control.controllers import (
 )
 from constraint_aware.control.executor import Executor, orient_normal
 from constraint_aware.control.record import RunRecord
-from constraint_aware.control.simulate import NoisySensorSim, RunSpec, build_task, executor_config
-from constraint_aware.geometry import FloatArray, rotate_about, unit
+from constraint_aware.control.simulate import RunSpec
+from constraint_aware.geometry import FloatArray, unit
 from constraint_aware.policy import ConstraintAwarePolicy
-from constraint_aware.sim.world import CONTROL_PERIOD
 
 #: Steps counted as the start transient (the initial offset's correction) ...
 TRANSIENT_STEPS = 5
@@ -255,27 +254,11 @@ def run_variant(
         cond.task, "policy", cond.offset_deg, seed=seed, randomize=cond.randomize,
         sensor_noise=sensor_noise, overrides=cond.overrides,
     )  # fmt: skip
-    task = build_task(spec)
-    rng = np.random.default_rng(spec.seed + 7919)
-    sim: NoisySensorSim
-    if cond.preload_N > 0:
-        sim = PreloadSim(task, rng, sensor_noise, preload=np.zeros(3))
-    else:
-        sim = NoisySensorSim(task, rng, sensor_noise)
-    sim.reset()
     threshold = deadband.threshold_from_noise(sensor_noise)
-    cfg = dataclasses.replace(executor_config(task), threshold=threshold)
-    assert cfg.workplane_normal is not None
-    normal = np.asarray(cfg.workplane_normal, dtype=float)
-    u = sim.admissible_direction()
-    if isinstance(sim, PreloadSim):
-        sim.preload = cond.preload_N * u
-    d0 = rotate_about(u, normal, math.radians(cond.offset_deg))
-    rate = None
-    path_turn = 0.0
-    if cfg.constraint_type == "revolute" and cfg.rotation_radius:
-        rate = cfg.step_length / CONTROL_PERIOD / cfg.rotation_radius  # w_d = v_d / r
-        path_turn = math.degrees(cfg.step_length / cfg.rotation_radius)
+    prep = prepare_condition(cond, spec, threshold)
+    sim, cfg, normal, d0, rate = prep.sim, prep.config, prep.normal, prep.d0, prep.rotation_rate
+    radius = cfg.rotation_radius if rate is not None else None
+    path_turn = math.degrees(cfg.step_length / radius) if radius else 0.0
     if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
         normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
     ctrl = VARIANTS[variant](policy, rate, normal)
