@@ -11,7 +11,7 @@ from these fields alone, always right-handed.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal
 
@@ -337,20 +337,24 @@ def _pole_handle(body: MjsBody, at: HandleFrame, cfg: ObjectConfig) -> None:
     )
 
 
-def _plate_handle(body: MjsBody, at: HandleFrame, cfg: ObjectConfig) -> None:
-    """A box whose top face is the grasp centre; pressed from above (passive closure)."""
+def _top_box(body: MjsBody, at: HandleFrame, cfg: ObjectConfig, rgba: Sequence[float]) -> None:
+    """The handle box of half sizes `cfg.handle_half` [m] whose top face is the grasp centre."""
     import mujoco
 
-    hz = cfg.handle_half[2]
     body.add_geom(
         name="object_handle",
         type=mujoco.mjtGeom.mjGEOM_BOX,
         size=list(cfg.handle_half),
-        pos=at.point(0.0, 0.0, -hz),
+        pos=at.point(0.0, 0.0, -cfg.handle_half[2]),
         quat=at.quat,
         friction=_handle_friction(cfg),
-        rgba=list(PLATE_RGBA),
+        rgba=list(rgba),
     )
+
+
+def _plate_handle(body: MjsBody, at: HandleFrame, cfg: ObjectConfig) -> None:
+    """A box whose top face is the grasp centre; pressed from above (passive closure)."""
+    _top_box(body, at, cfg, PLATE_RGBA)
 
 
 def _knob_handle(body: MjsBody, at: HandleFrame, cfg: ObjectConfig) -> None:
@@ -359,15 +363,7 @@ def _knob_handle(body: MjsBody, at: HandleFrame, cfg: ObjectConfig) -> None:
     import mujoco
 
     hz = cfg.handle_half[2]
-    body.add_geom(
-        name="object_handle",
-        type=mujoco.mjtGeom.mjGEOM_BOX,
-        size=list(cfg.handle_half),
-        pos=at.point(0.0, 0.0, -hz),
-        quat=at.quat,
-        friction=_handle_friction(cfg),
-        rgba=list(KNOB_RGBA),
-    )
+    _top_box(body, at, cfg, KNOB_RGBA)
     body.add_geom(
         name="object_stem",
         type=mujoco.mjtGeom.mjGEOM_CYLINDER,
