@@ -342,10 +342,16 @@ def _embodiment_section(emb: dict[str, Any], policy: str = "default") -> list[st
         out.append(f"Randomized suite, {emb['seeds']} seeds per task and controller:\n")
         out += _embodiment_cells(emb["transfer"], robots, ctrls)
         out.append("")
+    shown: list[list[str]] = []
     for level in dict.fromkeys(r["level"] for r in emb["paper"]):
         band = "the executor's default dead band" if level is None else f"a {level:g} N dead band"
+        cells = _embodiment_cells([r for r in emb["paper"] if r["level"] == level], robots, ctrls)
+        if cells in shown:  # the default dead band is derived from the noise: often the same
+            out.append(f"The paper's conditions with {band}: the same cells as above.\n")
+            continue
+        shown.append(cells)
         out.append(f"The paper's conditions (seed 0, paper offsets), {band}:\n")
-        out += _embodiment_cells([r for r in emb["paper"] if r["level"] == level], robots, ctrls)
+        out += cells
         out.append("")
     if emb["variants"]:
         periods = emb["simulated_period_s"]
