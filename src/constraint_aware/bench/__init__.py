@@ -7,8 +7,7 @@ results.json. Names are resolved on first use, so importing this package imports
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from constraint_aware.lazy import lazy_getattr
 
 _EXPORTS = {
     "load_results": "run",
@@ -26,8 +25,4 @@ _EXPORTS = {
 }
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    if name not in _EXPORTS:
-        raise AttributeError(f"module 'constraint_aware.bench' has no attribute {name!r}")
-    return getattr(importlib.import_module(f"constraint_aware.bench.{_EXPORTS[name]}"), name)
+__getattr__ = lazy_getattr(__name__, _EXPORTS)

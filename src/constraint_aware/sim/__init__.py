@@ -8,8 +8,7 @@ package) does not import MuJoCo.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from constraint_aware.lazy import lazy_getattr
 
 _EXPORTS = {
     "DEFAULT_ROBOT": "embodiment",
@@ -27,8 +26,4 @@ _EXPORTS = {
 }
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    if name not in _EXPORTS:
-        raise AttributeError(f"module 'constraint_aware.sim' has no attribute {name!r}")
-    return getattr(importlib.import_module(f"constraint_aware.sim.{_EXPORTS[name]}"), name)
+__getattr__ = lazy_getattr(__name__, _EXPORTS)
