@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -11,7 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import constraint_aware.control.executor as executor_module
-from constraint_aware.control.controllers import ControlInput, FixedDirection
+from constraint_aware.control.controllers import DirectionController
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.simulate import RunSpec, executor_config, run
 from constraint_aware.errors import InvalidInputError, UnknownNameError
@@ -128,20 +129,10 @@ def test_same_seed_same_rollout() -> None:
         assert np.all(np.isfinite(step.force)) and np.all(np.isfinite(step.hand_position))
 
 
-class _TrueDirection(FixedDirection):
-    """Moves along the simulator's true admissible direction: a scripted pull."""
-
-    name = "truth"
-
-    def __init__(self, sim: JacoSim) -> None:
-        self.sim = sim
-
-    def next_direction(self, inp: ControlInput) -> np.ndarray:
-        return self.sim.admissible_direction()
-
-
 @pytest.mark.parametrize("name", ["drawer-opening", "plate-sliding", "pole-pulling"])
-def test_grasp_holds_under_a_scripted_pull(name: str, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_grasp_holds_under_a_scripted_pull(
+    name: str, monkeypatch: pytest.MonkeyPatch, true_direction: Callable[..., DirectionController]
+) -> None:
     task = task_config(name)
     sim = JacoSim(task)
     sim.reset()
@@ -150,7 +141,7 @@ def test_grasp_holds_under_a_scripted_pull(name: str, monkeypatch: pytest.Monkey
     # "Second embodiment"; its lag is `tracking_time_constant`)
     monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
     cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
-    record = Executor(sim, _TrueDirection(sim), cfg, monitor=sim).run(sim.admissible_direction())
+    record = Executor(sim, true_direction(sim), cfg, monitor=sim).run(sim.admissible_direction())
     assert record.outcome == "success", record.reason
     assert record.slip_m < 0.015
 

@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
 import pytest
 
-from constraint_aware.control.controllers import ControlInput, FixedDirection
+from constraint_aware.control.controllers import DirectionController
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.simulate import RunSpec, executor_config, run
 from constraint_aware.errors import UnknownNameError
@@ -98,25 +99,15 @@ def test_wrist_sensor_sign_and_magnitude_in_a_scripted_push() -> None:
     assert np.linalg.norm(delta[:2]) < 0.05 * expected
 
 
-class _TrueDirection(FixedDirection):
-    """Moves along the simulator's true admissible direction: a scripted pull."""
-
-    name = "truth"
-
-    def __init__(self, sim: ManipulationSim) -> None:
-        self.sim = sim
-
-    def next_direction(self, inp: ControlInput) -> np.ndarray:
-        return self.sim.admissible_direction()
-
-
 @pytest.mark.parametrize("name", list(TASKS))
-def test_grasp_holds_under_a_scripted_pull(name: str) -> None:
+def test_grasp_holds_under_a_scripted_pull(
+    name: str, true_direction: Callable[..., DirectionController]
+) -> None:
     task = task_config(name)
     sim = ManipulationSim(task)
     sim.reset()
     cfg = executor_config(task)
-    record = Executor(sim, _TrueDirection(sim), cfg, monitor=sim).run(sim.admissible_direction())
+    record = Executor(sim, true_direction(sim), cfg, monitor=sim).run(sim.admissible_direction())
     assert record.outcome == "success", record.reason
     assert record.slip_m < 0.01
     assert record.peak_force < 20.0
