@@ -29,8 +29,8 @@ import mujoco
 import numpy as np
 
 from constraint_aware.control.controllers import make_controller
-from constraint_aware.control.executor import Executor, orient_normal
-from constraint_aware.control.simulate import RunSpec, executor_config, run
+from constraint_aware.control.executor import Executor
+from constraint_aware.control.simulate import RunSpec, controller_geometry, executor_config, run
 from constraint_aware.geometry import rotate_about
 from constraint_aware.sim import jaco
 from constraint_aware.sim.embodiment import Embodiment
@@ -112,11 +112,7 @@ def jaco_run(
     assert cfg.workplane_normal is not None
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     d0 = rotate_about(sim.admissible_direction(), normal, math.radians(10.0))
-    rate = None
-    if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
-        normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
-        assert cfg.rotation_radius is not None
-        rate = cfg.step_length / sim.control_period / cfg.rotation_radius
+    normal, rate = controller_geometry(cfg, sim, d0)
     ctrl = make_controller(controller, None, rate, normal, {})
 
     class Watched:

@@ -32,8 +32,8 @@ import numpy as np
 import pytest
 
 from constraint_aware.control.controllers import make_controller
-from constraint_aware.control.executor import Executor, orient_normal
-from constraint_aware.control.simulate import NoisySensorSim, executor_config
+from constraint_aware.control.executor import Executor
+from constraint_aware.control.simulate import NoisySensorSim, controller_geometry, executor_config
 from constraint_aware.geometry import rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.tasks import TASKS, TaskConfig, object_for, task_config, task_from_object
@@ -147,11 +147,7 @@ def rollout(task: TaskConfig) -> dict[str, Any]:
     assert cfg.workplane_normal is not None
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     d0 = rotate_about(sim.admissible_direction(), normal, math.radians(10.0))
-    rate = None
-    if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
-        normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
-        assert cfg.rotation_radius is not None
-        rate = cfg.step_length / sim.control_period / cfg.rotation_radius
+    normal, rate = controller_geometry(cfg, sim, d0)
     policy = ConstraintAwarePolicy.load(SNAPSHOT_POLICY)
     controller = make_controller("policy", policy, rate, normal, {})
     record = Executor(sim, controller, cfg, monitor=sim).run(d0, {"task": task.name}).to_dict()

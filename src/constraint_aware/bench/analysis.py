@@ -21,11 +21,16 @@ from constraint_aware import deadband
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor, ExecutorConfig
-from constraint_aware.control.simulate import NoisySensorSim, RunSpec, build_task, executor_config
+from constraint_aware.control.simulate import (
+    NoisySensorSim,
+    RunSpec,
+    build_task,
+    controller_geometry,
+    executor_config,
+)
 from constraint_aware.geometry import FloatArray, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.tasks import TASKS, task_config
-from constraint_aware.sim.world import CONTROL_PERIOD
 from constraint_aware.spatial import Wrench
 
 #: The section's controllers: label -> (executor controller name, shipped policy name or None).
@@ -99,10 +104,9 @@ class PreloadSim(NoisySensorSim):
 class PreparedRun:
     """A condition's simulator, reset, with the executor config and the run's inputs.
 
-    normal: (3,) the workplane normal as configured (not yet oriented from the hinge);
     d0: (3,) the initial direction, the admissible one turned by the condition's offset;
-    rotation_rate: [rad/s] v / r on revolute joints (what the classical controller is
-    given), else None."""
+    normal, rotation_rate: the controllers' geometry (`control.simulate.controller_geometry`:
+    the normal oriented from the hinge, w_d = v / r on revolute joints, else None)."""
 
     sim: NoisySensorSim
     config: ExecutorConfig
@@ -129,9 +133,7 @@ def prepare_condition(cond: Condition, spec: RunSpec, threshold: float) -> Prepa
     if isinstance(sim, PreloadSim):
         sim.preload = cond.preload_N * u
     d0 = rotate_about(u, normal, math.radians(spec.offset_deg))
-    rate = None
-    if cfg.constraint_type == "revolute" and cfg.rotation_radius:
-        rate = cfg.step_length / CONTROL_PERIOD / cfg.rotation_radius  # w_d = v_d / r
+    normal, rate = controller_geometry(cfg, sim, d0)
     return PreparedRun(sim, cfg, normal, d0, rate)
 
 

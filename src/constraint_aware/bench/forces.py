@@ -37,7 +37,7 @@ from constraint_aware.control.controllers import (
     make_controller,
     turn_vector,
 )
-from constraint_aware.control.executor import Executor, orient_normal
+from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.simulate import RunSpec
 from constraint_aware.geometry import FloatArray, unit
@@ -259,8 +259,6 @@ def run_variant(
     sim, cfg, normal, d0, rate = prep.sim, prep.config, prep.normal, prep.d0, prep.rotation_rate
     radius = cfg.rotation_radius if rate is not None else None
     path_turn = math.degrees(cfg.step_length / radius) if radius else 0.0
-    if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
-        normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
     ctrl = VARIANTS[variant](policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
     return diagnose(record, cond, variant, seed, normal, path_turn)

@@ -161,6 +161,23 @@ def simulated_robot(
     return make_embodiment(robot, task, rng, noise, bias)
 
 
+def controller_geometry(
+    cfg: ExecutorConfig, robot: Robot, d0: FloatArray
+) -> tuple[FloatArray, float | None]:
+    """What a direction controller is given besides the force: the workplane normal (3,),
+    oriented from the hinge on revolute joints so that moving along d0 (3,) turns positively
+    about it (the classical controller and `steady` turn about this axis), and the rotation
+    rate w_d = v_d / r [rad/s] on revolute joints with a known radius (else None)."""
+    assert cfg.workplane_normal is not None
+    normal = np.asarray(cfg.workplane_normal, dtype=float)
+    if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
+        normal = orient_normal(normal, d0, robot.read_pose().position, cfg.hinge_point)
+    rate = None
+    if cfg.constraint_type == "revolute" and cfg.rotation_radius:
+        rate = cfg.step_length / robot.control_period / cfg.rotation_radius  # w_d = v_d / r
+    return normal, rate
+
+
 def run(
     spec: RunSpec,
     policy: ConstraintAwarePolicy | None = None,
@@ -192,12 +209,7 @@ def run(
         d0 = np.asarray(initial_direction, dtype=float)
     else:
         d0 = rotate_about(sim.admissible_direction(), normal, math.radians(spec.offset_deg))
-    if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
-        # the classical controller turns about this axis too: give it the oriented normal
-        normal = orient_normal(normal, d0, sim.read_pose().position, cfg.hinge_point)
-    rate = None
-    if cfg.constraint_type == "revolute" and cfg.rotation_radius:
-        rate = cfg.step_length / sim.control_period / cfg.rotation_radius  # w_d = v_d / r
+    normal, rate = controller_geometry(cfg, sim, d0)
     ctrl = controller or make_controller(
         spec.controller, policy, rate, normal, dict(spec.controller_params)
     )
