@@ -5,6 +5,8 @@ Everything here works on a single vector of shape (3,) or on a batch of shape (N
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -97,3 +99,19 @@ def random_perpendicular(rng: np.random.Generator, axis: FloatArray) -> FloatArr
         alt[small] = np.cross(axis[bad][small], np.array([1.0, 0.0, 0.0]))
         p[bad] = alt
     return unit(p)
+
+
+def turn_vector(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The rotation vector (3,) [rad] turning unit a onto unit b about a x b (zero if equal;
+    for opposite vectors, any perpendicular axis)."""
+    axis = np.cross(a, b)
+    s = float(np.linalg.norm(axis))
+    c = float(a @ b)
+    if s < 1e-12:
+        if c > 0:
+            return np.zeros(3)
+        perp = np.cross(a, [1.0, 0.0, 0.0])
+        if np.linalg.norm(perp) < 1e-6:
+            perp = np.cross(a, [0.0, 1.0, 0.0])
+        return np.asarray(unit(perp) * math.pi)
+    return np.asarray(axis / s * math.atan2(s, c))

@@ -35,12 +35,11 @@ from constraint_aware.control.controllers import (
     SteadyConfig,
     SteadyDirection,
     make_controller,
-    turn_vector,
 )
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.simulate import RunSpec
-from constraint_aware.geometry import FloatArray, unit
+from constraint_aware.geometry import FloatArray, turn_vector, unit
 from constraint_aware.policy import ConstraintAwarePolicy
 
 #: Steps counted as the start transient (the initial offset's correction) ...

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -10,7 +9,13 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.errors import UnknownNameError, check_number
-from constraint_aware.geometry import FloatArray, normalize_force, unit, update_direction_rule
+from constraint_aware.geometry import (
+    FloatArray,
+    normalize_force,
+    turn_vector,
+    unit,
+    update_direction_rule,
+)
 from constraint_aware.policy import ConstraintAwarePolicy
 
 
@@ -236,22 +241,6 @@ class SteadyDirection(_Base):
         else:
             self._rotation = Rotation.from_rotvec(per_step if known else self._smoothed)
         return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
-
-
-def turn_vector(a: FloatArray, b: FloatArray) -> FloatArray:
-    """The rotation vector (3,) [rad] turning unit a onto unit b about a x b (zero if equal;
-    for opposite vectors, any perpendicular axis)."""
-    axis = np.cross(a, b)
-    s = float(np.linalg.norm(axis))
-    c = float(a @ b)
-    if s < 1e-12:
-        if c > 0:
-            return np.zeros(3)
-        perp = np.cross(a, [1.0, 0.0, 0.0])
-        if np.linalg.norm(perp) < 1e-6:
-            perp = np.cross(a, [0.0, 1.0, 0.0])
-        return np.asarray(unit(perp) * math.pi)
-    return np.asarray(axis / s * math.atan2(s, c))
 
 
 def _confidence(force_norm: float, threshold: float) -> float:

@@ -708,8 +708,7 @@ class Executor:
         tau cannot add deflection along the motion and read as a force (a Jaco reporting its
         0.48 s settle time instead of its 0.14 s lag was stopped `not_following` after 2
         moves). A frozen arm has no velocity and gets no credit."""
-        assert st.deflection0 is not None
-        deflection = np.asarray(pose.position, dtype=float) - st.target.position - st.deflection0
+        deflection = self._deflection(st, pose, lag_share=0.0)
         tau = st.tracking_time_constant
         speed = float(np.linalg.norm(st.velocity))
         if tau is None or speed < 1e-9:
@@ -724,10 +723,11 @@ class Executor:
         its `tracking_time_constant` tau, tau x the hand's measured velocity. On a compliant
         arm with damping c, F = k (x - x_c) + c dx/dt (first order, tau = c / k): a hand that
         lags its moving target by tau v feels no force from that lag. `lag_share` scales tau
-        (the self-check's confirmation also asks for agreement at half of it)."""
+        (the self-check's confirmation also asks for agreement at half of it; 0: the
+        deflection alone)."""
         assert st.deflection0 is not None
         deflection = np.asarray(pose.position, dtype=float) - st.target.position - st.deflection0
-        if st.tracking_time_constant is not None:
+        if st.tracking_time_constant is not None and lag_share > 0:
             deflection = deflection + lag_share * st.tracking_time_constant * st.velocity
         return deflection
 
