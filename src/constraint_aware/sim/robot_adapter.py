@@ -104,6 +104,7 @@ class SimulatedRobot(ABC):
     _arm_act: FloatArray  # the arm's actuator ids (one per Cartesian axis for servo arms)
     _period_steps: int = round(CONTROL_PERIOD / TIMESTEP)
     settle_time: float = SETTLE_TIME  # [s] of each settling phase of the grasp (sim/grasp.py)
+    _tracking_time_constant: float | None = None  # [s] fixed at reset (Embodiment.reset)
 
     def _bind_sensor(self, wrist_site: str, tcp_site: str, force: str, torque: str) -> None:
         """Resolve the sensor's names to ids once."""
@@ -192,10 +193,9 @@ class SimulatedRobot(ABC):
         reported, 0.12 s along the motion; the lag-aware self-check then saw F against the
         credited deflection). Rotations are not included: per-axis values of the linear model
         are in `axis_time_constants`."""
-        tau = getattr(self, "_tracking_time_constant", None)
-        if tau is None:
-            tau = self._free_space_time_constant()
-        return float(tau)
+        if self._tracking_time_constant is None:
+            return self._free_space_time_constant()
+        return float(self._tracking_time_constant)
 
     #: whether the interpolator hands each piece to `_apply_setpoint_matrix` (a controller
     #: that works on matrices: no Rotation objects per piece) instead of `_apply_setpoint`
