@@ -32,7 +32,8 @@ def _shown_numbers(markdown: str) -> list[str]:
     text = re.sub(r"\]\([^)]*\)", "]", markdown)  # figure file names
     text = re.sub(r"`[^`]*`", "", text)  # code: file and command names
     text = re.sub(r"[A-Za-z_]+\d+[A-Za-z_\d]*", "", text)  # identifiers like fig6, p95
-    return [m.replace(",", "") for m in re.findall(r"-?\d[\d,]*(?:\.\d+)?", text)]
+    # a minus sign, not the hyphen of a range such as "figs. 7-8"
+    return [m.replace(",", "") for m in re.findall(r"(?:(?<!\d)-)?\d[\d,]*(?:\.\d+)?", text)]
 
 
 @pytest.fixture(scope="module")
@@ -158,9 +159,9 @@ def test_policy_section_in_results_and_report(bench_dir: Path) -> None:
     section = PolicySection.from_dict(results["policy_section"])
     assert section.threshold_N == threshold_from_noise(section.sensor_noise_N)
     controllers = {c.controller for c in section.paper_offsets}
-    assert controllers == {"default", "paper", "steady", "classical", "projection"}
+    assert controllers == {"default", "default (raw)", "paper", "classical", "projection"}
     assert (
-        "## Policies: paper vs default vs steady vs classical vs projection"
+        "## Policies: default vs default (raw) vs paper vs classical vs projection"
         in (bench_dir / "report.md").read_text()
     )
 

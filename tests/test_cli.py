@@ -52,7 +52,7 @@ def test_run_help_shows_defaults_and_choices() -> None:
     out = cap("run", "--help")
     assert out.returncode == 0
     text = " ".join(out.stdout.split())
-    assert "{policy,steady,fixed,projection,classical}" in text
+    assert "{policy,policy-raw,fixed,projection,classical}" in text
     assert "drawer-opening,plate-sliding" in text
     assert "(default: 30.0)" in text  # --offset-deg, from RunSpec
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -333,7 +334,9 @@ def test_default_opens_a_stiff_door_with_the_derived_dead_band() -> None:
     threshold = deadband.threshold_from_noise(spec.sensor_noise)
     record, _ = run(spec, executor_overrides={"threshold": threshold})
     assert record.success, record.reason
-    paper, _ = run(spec, policy=PAPER, executor_overrides={"threshold": threshold})
+    # the paper's policy as published: its rule alone (controller "policy-raw")
+    raw = dataclasses.replace(spec, controller="policy-raw")
+    paper, _ = run(raw, policy=PAPER, executor_overrides={"threshold": threshold})
     assert not paper.success
 
 

@@ -14,6 +14,7 @@ from constraint_aware.control.controllers import (
     PolicyController,
     SteadyConfig,
     SteadyDirection,
+    driving_policy,
     make_controller,
 )
 from constraint_aware.errors import ConfigError
@@ -148,18 +149,22 @@ def test_config_fields_are_validated_by_name() -> None:
         SteadyConfig(recovery_factor=0.5)
 
 
-def test_make_controller_keeps_the_policy_controller_and_wraps_only_steady() -> None:
+def test_policy_runs_inside_steady_and_policy_raw_is_the_papers_rule() -> None:
     paper = ConstraintAwarePolicy.load("paper")
-    plain = make_controller("policy", paper)
-    assert isinstance(plain, PolicyController)  # the paper's controller, unchanged
-    steady = make_controller("steady", paper, rotation_rate=0.2)
-    assert isinstance(steady, SteadyDirection)
+    raw = make_controller("policy-raw", paper)
+    assert isinstance(raw, PolicyController)  # the paper's rule, unchanged
+    assert driving_policy(raw) is paper
+    steady = make_controller("policy", paper, rotation_rate=0.2)
+    assert isinstance(steady, SteadyDirection) and steady.name == "policy"
     assert isinstance(steady.inner, PolicyController)
     assert steady.rotation_rate == 0.2
+    assert driving_policy(steady) is paper
+    assert driving_policy(make_controller("projection")) is None
 
 
 def test_steady_opens_the_door_in_closed_loop() -> None:
     from constraint_aware.control.simulate import RunSpec, run
 
-    record, _ = run(RunSpec("door-opening", "steady", 15.0, seed=0))
+    record, _ = run(RunSpec("door-opening", "policy", 15.0, seed=0))
+    assert record.label["policy"] == "default"
     assert record.success, record.reason

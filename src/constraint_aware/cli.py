@@ -392,6 +392,7 @@ def _check_run_outputs(args: argparse.Namespace) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from constraint_aware.control.controllers import POLICY_CONTROLLERS
     from constraint_aware.control.settings import parse_settings
     from constraint_aware.control.simulate import RunSpec, run
     from constraint_aware.policy import ConstraintAwarePolicy
@@ -400,7 +401,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     spec = RunSpec(task=args.task, **collect(args, args.run_specs))
     if args.set:
         spec = spec.with_settings(parse_settings(args.set))
-    policy = ConstraintAwarePolicy.load(args.policy) if spec.controller == "policy" else None
+    uses_policy = spec.controller in POLICY_CONTROLLERS
+    policy = ConstraintAwarePolicy.load(args.policy) if uses_policy else None
     frames: list[Any] = []
     on_step = None
     if args.video:
@@ -524,7 +526,9 @@ def cmd_lfo(args: argparse.Namespace) -> int:
         from constraint_aware.sim.embodiment import parse_robot
 
         parse_robot(args.robot)  # before any work
-    if args.execute and args.controller == "policy":
+    from constraint_aware.control.controllers import POLICY_CONTROLLERS
+
+    if args.execute and args.controller in POLICY_CONTROLLERS:
         from constraint_aware.policy import ConstraintAwarePolicy
 
         policy = ConstraintAwarePolicy.load(args.policy)  # before any work

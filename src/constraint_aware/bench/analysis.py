@@ -1,4 +1,4 @@
-"""The policy section of the bench (issue 9): paper vs default vs steady vs classical vs projection.
+"""The bench's policy section (issue 9): default, default (raw), paper, classical, projection.
 
 Typed from end to end: experiments produce `RunResult`s, `summarize` groups them by their own
 keys (never by the order runs were generated) into `CellSummary`s, and the report reads those.
@@ -35,10 +35,11 @@ from constraint_aware.spatial import Wrench
 
 #: The section's controllers: label -> (executor controller name, shipped policy name or None).
 POLICY_SECTION_CONTROLLERS: dict[str, tuple[str, str | None]] = {
+    # the default policy as the library runs it (controller "policy": inside SteadyDirection)
     "default": ("policy", "default"),
-    "paper": ("policy", "paper"),
-    # the default policy inside SteadyDirection (docs/forces.md): the force-shaping candidate
-    "steady": ("steady", "default"),
+    # the same policy alone, and the paper's as published: the paper's rule d + pi(s)
+    "default (raw)": ("policy-raw", "default"),
+    "paper": ("policy-raw", "paper"),
     "classical": ("classical", None),
     "projection": ("projection", None),
 }

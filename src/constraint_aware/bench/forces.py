@@ -146,9 +146,9 @@ _OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_fee
 
 #: label -> controller factory. "steady" is the full wrapper (controller "steady").
 VARIANTS: dict[str, ControllerFactory] = {
-    "default": _named("policy"),
+    "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
-    "steady": _named("steady"),
+    "steady": _named("policy"),  # the same inside SteadyDirection: controller "policy"
     "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
     "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
     "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),

@@ -277,16 +277,17 @@ def _table(cells: list[CellSummary], first: str, key: Any) -> list[str]:
 
 
 def policy_section_lines(sec: PolicySection) -> list[str]:
-    """The policy section: the paper's policy, the default policy (alone and inside
-    SteadyDirection), classical, projection."""
-    lines = ["## Policies: paper vs default vs steady vs classical vs projection\n"]
+    """The policy section: the default policy as run (controller "policy") and alone
+    ("policy-raw"), the paper's policy as published, classical, projection."""
+    lines = ["## Policies: default vs default (raw) vs paper vs classical vs projection\n"]
     lines.append(
         f"Every controller runs with the dead band derived from the sensor noise "
         f"({_f(sec.sensor_noise_N, 1)} N per axis: {_f(sec.threshold_N, 1)} N), not a hand-set "
-        "one. `steady` is the default policy inside SteadyDirection (docs/forces.md): a "
-        "confidence ramp on |F|, overshoot damping and, on revolute joints, the rotation rate "
-        "v / r the classical controller is also given. "
-        "Cells: successes / runs, median peak |F| [N], mean |F| [N].\n"
+        "one. `default` is the default policy as controller `policy` runs it, inside "
+        "SteadyDirection (docs/forces.md): a confidence ramp on |F|, overshoot damping and, on "
+        "revolute joints, the rotation rate v / r the classical controller is also given. "
+        "`default (raw)` and `paper` are the policies alone (controller `policy-raw`, paper "
+        "3.3's d + pi(s)). Cells: successes / runs, median peak |F| [N], mean |F| [N].\n"
     )
     if sec.suite:
         lines.append("### Randomized suite\n")

@@ -6,6 +6,7 @@ brings in the simulator.
 
 from constraint_aware.control.controllers import (
     CONTROLLERS,
+    POLICY_CONTROLLERS,
     ControlInput,
     DirectionController,
     make_controller,
@@ -19,6 +20,7 @@ __all__ = [
     "CONTROLLERS",
     "OUTCOMES",
     "OUTCOME_MEANINGS",
+    "POLICY_CONTROLLERS",
     "ControlInput",
     "DirectionController",
     "Executor",

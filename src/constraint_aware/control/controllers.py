@@ -98,13 +98,15 @@ class ProjectionController(_Base):
 
 
 class PolicyController(_Base):
-    """The constraint-aware policy (paper 3.3): d <- (d + pi(s)) / |d + pi(s)|.
+    """The constraint-aware policy alone (paper 3.3): d <- (d + pi(s)) / |d + pi(s)|.
 
     s is the policy card's observation: (F^, d), plus the previous step's for history
-    policies (a fresh session per run) or |F|/(k*delta) from the robot's step force.
+    policies (a fresh session per run) or |F|/(k*delta) from the robot's step force. This is
+    controller "policy-raw" (the paper's rule as published); controller "policy" runs it
+    inside `SteadyDirection`.
     """
 
-    name = "policy"
+    name = "policy-raw"
 
     def __init__(self, policy: ConstraintAwarePolicy | None = None) -> None:
         self.policy = policy or ConstraintAwarePolicy.load()
@@ -257,17 +259,20 @@ def make_controller(
     rotation_axis: FloatArray | None = None,
     params: dict[str, float] | None = None,
 ) -> DirectionController:
-    """A controller by name: policy, steady, fixed, projection or classical.
+    """A controller by name: policy, policy-raw, fixed, projection or classical.
 
-    rotation_rate [rad/s] and rotation_axis (3,) give the classical controller its rotational
-    part (revolute tasks), and "steady" (the policy controller in `SteadyDirection`) its
-    feed-forward; the other controllers leave hand rotation to the executor. params: the
-    classical controller's gains (ClassicalGains fields).
+    "policy" is the learned policy as this library runs it: inside `SteadyDirection`, which
+    it measured better than the policy alone on every task and both robots
+    (docs/forces.md); "policy-raw" is the paper's rule d <- (d + pi(s)) / |...| alone, the
+    faithful reproduction. rotation_rate [rad/s] and rotation_axis (3,) give the classical
+    controller its rotational part (revolute tasks), and "policy" its feed-forward; the
+    other controllers leave hand rotation to the executor. params: the classical
+    controller's gains (ClassicalGains fields).
     """
     if name == "policy":
+        return SteadyDirection(PolicyController(policy), rotation_rate, name="policy")
+    if name == "policy-raw":
         return PolicyController(policy)
-    if name == "steady":
-        return SteadyDirection(PolicyController(policy), rotation_rate)
     if name == "fixed":
         return FixedDirection()
     if name == "projection":
@@ -280,7 +285,16 @@ def make_controller(
     raise UnknownNameError("controller", name, list(CONTROLLERS))
 
 
-CONTROLLERS = ("policy", "steady", "fixed", "projection", "classical")
+CONTROLLERS = ("policy", "policy-raw", "fixed", "projection", "classical")
+#: The controllers a learned policy drives (the ones `--policy` applies to).
+POLICY_CONTROLLERS = ("policy", "policy-raw")
+
+
+def driving_policy(controller: object) -> ConstraintAwarePolicy | None:
+    """The learned policy behind a controller ("policy", "policy-raw"), or None."""
+    while isinstance(controller, SteadyDirection):
+        controller = controller.inner
+    return controller.policy if isinstance(controller, PolicyController) else None
 
 
 def project_on_plane(direction: FloatArray, normal: FloatArray | None) -> FloatArray:

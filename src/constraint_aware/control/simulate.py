@@ -12,7 +12,7 @@ import numpy as np
 from constraint_aware.control.controllers import (
     CONTROLLERS,
     DirectionController,
-    PolicyController,
+    driving_policy,
     make_controller,
 )
 from constraint_aware.control.executor import Executor, ExecutorConfig, orient_normal
@@ -233,8 +233,9 @@ def run(
         "command_from": cfg.command_from,
         "robot": spec.robot,
     }
-    if isinstance(ctrl, PolicyController):
-        label["policy"] = ctrl.policy.name  # which policy drove the run (the card's name)
+    driver = driving_policy(ctrl)
+    if driver is not None:
+        label["policy"] = driver.name  # which policy drove the run (the card's name)
     return executor.run(d0, label), sim
 
 

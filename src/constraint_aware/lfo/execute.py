@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.control.controllers import PolicyController, make_controller
+from constraint_aware.control.controllers import driving_policy, make_controller
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.simulate import RunSpec, executor_config, simulated_robot
@@ -138,8 +138,9 @@ def execute(
         "robot": robot,
         **goal_label(skill.constraint_type, float(skill.goal)),
     }
-    if isinstance(ctrl, PolicyController):
-        label["policy"] = ctrl.policy.name  # which policy drove the run (the card's name)
+    driver = driving_policy(ctrl)
+    if driver is not None:
+        label["policy"] = driver.name  # which policy drove the run (the card's name)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, label)
     info = {
         "task": task.name,
