@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -9,6 +10,7 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.training.config import EnvConfig, resistance_config
 from constraint_aware.training.curve import read_log
 from constraint_aware.training.ppo import make_config, train
 
@@ -69,6 +71,7 @@ def test_same_seed_same_weights(tmp_path: Path) -> None:
         ("net_arch", ()),
         ("eval_every", 0),
         ("target_angle_deg", -1.0),
+        ("target_evaluation", "test"),
         ("time_budget_s", 0.0),
         ("seed", -1),
     ],
@@ -78,6 +81,35 @@ def test_train_config_validation_names_the_field(field: str, value: object) -> N
 
     with pytest.raises(InvalidInputError, match=f"TrainConfig.{field}"):
         make_config("fast", **{field: value})
+
+
+def test_target_on_the_standard_evaluation_stops_training(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """target_evaluation "standard": each periodic evaluation also runs the paper's
+    resistance-free test set and the target applies there. The untrained policy's first
+    evaluation (~22 deg) meets 60 deg, not 0.01 deg."""
+    from constraint_aware.training import ppo
+
+    calls: list[str] = []
+
+    def spy(env: EnvConfig) -> EnvConfig:
+        calls.append(env.observation)
+        return ppo_standard_env(env)
+
+    ppo_standard_env = ppo.standard_env
+    monkeypatch.setattr(ppo, "standard_env", spy)
+    env = resistance_config("magnitude")
+    base = make_config(
+        "fast", env=env, n_envs=200, batch_size=1000, total_timesteps=4000, eval_every=1,
+        eval_episodes=200, target_evaluation="standard",
+    )  # fmt: skip
+    met = train(dataclasses.replace(base, target_angle_deg=60.0), final_eval_episodes=100)
+    assert met.target_reached_s is not None and len(met.log) == 1
+    assert len(calls) == 2  # the one evaluation, then the card's standard metrics
+    calls.clear()
+    unmet = train(dataclasses.replace(base, target_angle_deg=0.01), final_eval_episodes=100)
+    assert unmet.target_reached_s is None and len(calls) == len(unmet.log) + 1 > 2
 
 
 def test_default_preset_trains_with_resistance() -> None:

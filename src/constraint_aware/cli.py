@@ -202,6 +202,7 @@ def _train_parser(p: argparse.ArgumentParser) -> None:
         skip=("preset", "env"),
         defaults={name: per_preset(name) for name in train_fields},
         aliases=_TRAIN_ALIASES,
+        choices={"target_evaluation": ppo.TARGET_EVALUATIONS},
     )
     env = p.add_argument_group("training environment (EnvConfig)")
     env_specs = add_dataclass_flags(env, EnvConfig, prefix="env.")
