@@ -6,12 +6,12 @@ the steady part, and the steady direction error: its signed mean is the tracking
 step-to-step turn is the zig-zag); `summarize` groups them by their own keys into
 `VariantSummary`s. `benchmarks/forces.py` runs the study and writes JSON; the report reads it.
 
-Variants (`VARIANTS`): the default policy as the executor runs it today, the classical
+Variants (`VARIANTS`): the default policy alone (controller "policy-raw"), the classical
 controller (unchanged gains), the projection controller, `SteadyDirection` around the policy
-with each of its parts alone and together, and around the projection controller (the wrapper
-is not specific to the policy); and two rejected candidates kept for their numbers: a
-curvature feed-forward estimated from d's own recent turns, and two policy sub-steps per
-control step.
+with each of its parts alone and together (together: controller "policy"), and around the
+projection controller (the wrapper is not specific to the policy); and two rejected
+candidates kept for their numbers: a curvature feed-forward estimated from d's own recent
+turns, and two policy sub-steps per control step.
 """
 
 from __future__ import annotations
@@ -144,7 +144,8 @@ def _wrapped(kind: str) -> ControllerFactory:
 
 _OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False)
 
-#: label -> controller factory. "steady" is the full wrapper (controller "steady").
+#: label -> controller factory. "default" is the default policy alone (controller "policy-raw"),
+#: "steady" the full wrapper around it (controller "policy", the library's default).
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),

@@ -163,7 +163,8 @@ class SteadyConfig:
 
 
 class SteadyDirection(_Base):
-    """Any direction controller with its turns steadied (issue 9's door and drawer forces).
+    """Any direction controller with its turns steadied (issue 9's door and drawer forces);
+    controller "policy" is the learned policy inside it.
 
     Measured cause (bench/forces.py): the default policy turns d by 5-12 deg for any force
     just above the dead band, so on the door it settles into a +-10 deg zig-zag from step to
