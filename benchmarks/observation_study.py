@@ -68,9 +68,10 @@ def measure(observations: list[str], closed_loop: bool) -> None:
         from constraint_aware.bench.analysis import closed_loop_cases, run_all, summarize
 
         thr = deadband.threshold_from_noise(0.1)  # the simulated sensor's noise: 0.1 N
-        runs = run_all(
-            closed_loop_cases(), [0, 1], ("classical",), policies=policies, threshold=thr
-        )
+        runs = run_all(  # each policy alone: the observations compared, not the wrapper
+            closed_loop_cases(), [0, 1], ("classical",), policies=policies, threshold=thr,
+            policy_controller="policy-raw",
+        )  # fmt: skip
         cells = summarize(runs)
         out["closed_loop_threshold_N"] = thr
         out["closed_loop"] = [dataclasses.asdict(c) for c in cells]

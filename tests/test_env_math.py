@@ -13,7 +13,7 @@ from constraint_aware.geometry import (
     rotate_about,
     update_direction_rule,
 )
-from constraint_aware.training.batch import SingleSystemBatch
+from constraint_aware.training.batch import SingleSystemBatch, observation_space
 from constraint_aware.training.config import EnvConfig
 from constraint_aware.training.physics import analytic_constraint_force
 
@@ -218,6 +218,45 @@ def test_history_and_magnitude_observations(rng: np.random.Generator) -> None:
     )
     obs = unknown.reset(rng)
     assert 0.2 < np.mean(obs[:, 6] == 0.0) < 0.3
+
+
+def test_magnitude_flag_tells_an_unknown_step_force_from_a_small_force(
+    rng: np.random.Generator, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """magnitude_flag: the ratio as in "magnitude", then 1 where the robot reports k*delta
+    and 0 where not; the session builds the same observation (the flag from step_force)."""
+    from constraint_aware.policy import MAGNITUDE_CLIP, OBSERVATIONS, ConstraintAwarePolicy
+
+    config = EnvConfig(observation="magnitude_flag", step_force_unknown_share=0.25)
+    env = SingleSystemBatch(2000, config)
+    obs = env.reset(rng)
+    assert obs.shape == (2000, len(OBSERVATIONS["magnitude_flag"])) == (2000, 8)
+    known = env.params.step_force_known
+    assert 0.2 < np.mean(known == 0.0) < 0.3
+    np.testing.assert_array_equal(obs[:, 7], known)
+    norm = np.linalg.norm(env.measured_force(), axis=1)
+    ratio = np.minimum(norm / (env.params.stiffness * config.step_length), MAGNITUDE_CLIP)
+    expected = np.where(norm >= config.threshold, ratio, 0.0) * known
+    np.testing.assert_allclose(obs[:, 6], expected, atol=1e-12)
+    space = observation_space(config)
+    assert space.high[6] == MAGNITUDE_CLIP and space.high[7] == 1.0
+
+    # the session: what the policy is fed, recorded through act_batch
+    policy = ConstraintAwarePolicy.load("default")
+    assert policy.observation == "magnitude_flag"
+    seen: list[np.ndarray] = []
+    act = policy.act_batch
+
+    def recording(obs: np.ndarray) -> np.ndarray:
+        seen.append(obs.copy())
+        return act(obs)
+
+    monkeypatch.setattr(policy, "act_batch", recording)
+    d, force = np.array([1.0, 0.0, 0.0]), np.array([-0.8, 0.3, 0.0])
+    policy.session().update_direction(force, d, threshold=0.4, step_force=20.0)
+    policy.session().update_direction(force, d, threshold=0.4)
+    np.testing.assert_allclose(seen[0][0, 6:], [float(np.linalg.norm(force)) / 20.0, 1.0])
+    np.testing.assert_array_equal(seen[1][0, 6:], [0.0, 0.0])
 
 
 def test_log_uniform_stiffness_spreads_over_decades() -> None:

@@ -38,18 +38,24 @@ _CURRENT = (
 OBSERVATION_LAYOUT = _CURRENT
 #: Observation layouts by name. "history" adds the previous step's (F/|F|, d) (zeros at the
 #: first step); "magnitude" adds |F| / (k*delta), the force over the robot's step force (zero
-#: below the dead band, and zero when the robot does not report its stiffness).
+#: below the dead band, and zero when the robot does not report its stiffness);
+#: "magnitude_flag" adds the same ratio and a flag, 1 when the robot reports its step force and
+#: 0 when not, so that "unknown" is not read as "a small force" (the ratio is 0 for both).
 OBSERVATIONS: dict[str, tuple[str, ...]] = {
     "paper": _CURRENT,
     "history": _CURRENT + tuple(f"previous_{name}" for name in _CURRENT),
     "magnitude": (*_CURRENT, "force_over_step_force"),
+    "magnitude_flag": (*_CURRENT, "force_over_step_force", "step_force_known"),
 }
 #: What each observation needs from the robot besides the force and d (the card's `inputs`).
 OBSERVATION_INPUTS: dict[str, tuple[str, ...]] = {
     "paper": ("force", "direction"),
     "history": ("force", "direction"),
     "magnitude": ("force", "direction", "step_force"),
+    "magnitude_flag": ("force", "direction", "step_force"),
 }
+#: Observations with |F| / (k*delta) (and, for magnitude_flag, the known flag after it).
+MAGNITUDE_OBSERVATIONS = ("magnitude", "magnitude_flag")
 #: |F| / (k*delta) is clipped to this: beyond it the arm pushes far past one blocked step.
 MAGNITUDE_CLIP = 3.0
 #: The shipped policies: `default` (robust to the object's resistance) and `paper`.
@@ -144,12 +150,15 @@ class DirectionUpdater:
         if p.observation == "history":
             obs = np.concatenate([current, self._previous])
             self._previous = current
-        elif p.observation == "magnitude":
+        elif p.observation in MAGNITUDE_OBSERVATIONS:
             norm = float(np.linalg.norm(f))
             ratio = 0.0
             if step_force is not None and np.any(f_hat):
                 ratio = min(norm / float(step_force), MAGNITUDE_CLIP)
-            obs = np.concatenate([current, [ratio]])
+            extra = (
+                [ratio] if p.observation == "magnitude" else [ratio, float(step_force is not None)]
+            )
+            obs = np.concatenate([current, extra])
         else:
             obs = current
         if not np.any(f_hat):

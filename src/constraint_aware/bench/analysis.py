@@ -145,12 +145,14 @@ def run_condition(
     threshold: float,
     sensor_noise: float = 0.1,
     policy: ConstraintAwarePolicy | None = None,
+    policy_controller: str = "policy",
 ) -> RunResult:
     """One closed-loop run of `controller` on `cond` (the simulate.run steps, with the preload
     robot when `cond.preload_N` > 0). `controller` is a POLICY_SECTION_CONTROLLERS label, or
-    any label when `policy` is given (the policy controller with that policy)."""
+    any label when `policy` is given: then `policy_controller` ("policy" or "policy-raw")
+    with that policy."""
     if policy is not None:
-        name, policy_name = "policy", None
+        name, policy_name = policy_controller, None
     else:
         name, policy_name = POLICY_SECTION_CONTROLLERS[controller]
     spec = RunSpec(
@@ -188,15 +190,17 @@ def run_all(
     sensor_noise: float = 0.1,
     policies: dict[str, ConstraintAwarePolicy] | None = None,
     threshold: float | None = None,
+    policy_controller: str = "policy",
 ) -> list[RunResult]:
-    """Every condition x seed x controller (labels; `policies` adds policy objects by label),
-    with the dead band derived from the noise unless `threshold` [N] is given."""
+    """Every condition x seed x controller (labels; `policies` adds policy objects by label,
+    run by `policy_controller`), with the dead band derived from the noise unless
+    `threshold` [N] is given."""
     thr = deadband.threshold_from_noise(sensor_noise) if threshold is None else threshold
     policies = policies or {}
     labels = list(controllers) + [k for k in policies if k not in controllers]
     seeds = list(seeds)
     return [
-        run_condition(c, ctrl, s, thr, sensor_noise, policies.get(ctrl))
+        run_condition(c, ctrl, s, thr, sensor_noise, policies.get(ctrl), policy_controller)
         for c in conditions
         for s in seeds
         for ctrl in labels

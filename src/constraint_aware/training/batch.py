@@ -19,7 +19,7 @@ from constraint_aware.geometry import (
     unit,
     update_direction_rule,
 )
-from constraint_aware.policy import MAGNITUDE_CLIP, OBSERVATIONS
+from constraint_aware.policy import MAGNITUDE_CLIP, MAGNITUDE_OBSERVATIONS, OBSERVATIONS
 from constraint_aware.training.config import EnvConfig
 from constraint_aware.training.physics import ForceModel, analytic_constraint_force
 
@@ -37,6 +37,8 @@ def observation_space(config: EnvConfig) -> gym.spaces.Box:
     high = np.ones(obs_dim(config), dtype=np.float32)
     if config.observation == "magnitude":
         high[-1] = MAGNITUDE_CLIP
+    elif config.observation == "magnitude_flag":
+        high[-2] = MAGNITUDE_CLIP  # the flag's bound stays 1
     return gym.spaces.Box(-high, high, dtype=np.float32)
 
 
@@ -111,7 +113,7 @@ class SingleSystemBatch:
             preload=np.zeros((n, 3)),
             step_force_known=np.ones(n),
         )
-        if c.observation == "magnitude" and c.step_force_unknown_share > 0:
+        if c.observation in MAGNITUDE_OBSERVATIONS and c.step_force_unknown_share > 0:
             params.step_force_known = (rng.random(n) >= c.step_force_unknown_share).astype(float)
         if c.has_resistance:  # draws only here, so the paper's env keeps its random stream
             step_force = stiffness * c.step_length
@@ -184,7 +186,10 @@ class SingleSystemBatch:
         step_force = self.params.stiffness * c.step_length
         norm = np.linalg.norm(measured, axis=1)
         ratio = np.where(norm >= c.threshold, np.minimum(norm / step_force, MAGNITUDE_CLIP), 0.0)
-        ratio = ratio * self.params.step_force_known
+        known = self.params.step_force_known
+        ratio = ratio * known
+        if c.observation == "magnitude_flag":
+            return np.concatenate([current, ratio[:, None], known[:, None]], axis=1)
         return np.concatenate([current, ratio[:, None]], axis=1)
 
     def reset(self, rng: np.random.Generator | None = None) -> FloatArray:

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from constraint_aware.errors import InvalidInputError
-from constraint_aware.policy import OBSERVATIONS
+from constraint_aware.policy import MAGNITUDE_OBSERVATIONS, OBSERVATIONS
 
 Workplane = Literal["random", "horizontal"]
 
@@ -181,6 +181,6 @@ STEP_FORCE_UNKNOWN_SHARE = 0.25
 def resistance_config(observation: str = "paper", **overrides: Any) -> EnvConfig:
     """The paper's environment with the object's own resistance drawn as in `RESISTANCE`
     (and, for "magnitude", `STEP_FORCE_UNKNOWN_SHARE` of the episodes without k*delta)."""
-    unknown = STEP_FORCE_UNKNOWN_SHARE if observation == "magnitude" else 0.0
+    unknown = STEP_FORCE_UNKNOWN_SHARE if observation in MAGNITUDE_OBSERVATIONS else 0.0
     fields = {**RESISTANCE, "step_force_unknown_share": unknown, **overrides}
     return dataclasses.replace(EnvConfig(), observation=observation, **fields)

@@ -42,8 +42,10 @@ from constraint_aware.training.evaluate import evaluate
 from constraint_aware.training.reference import reference_controllers
 from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
 
-#: The observation of the default policy, chosen by benchmarks/observation_study.py.
-DEFAULT_OBSERVATION = "magnitude"
+#: The observation of the default policy, chosen by benchmarks/observation_study.py: the
+#: magnitude with a flag for "step force known" (policy.OBSERVATIONS; the card's
+#: observation_study gives the reason and the numbers).
+DEFAULT_OBSERVATION = "magnitude_flag"
 
 #: torch threads of the default preset. The 2x64 update is too small for intra-op threads to
 #: pay, and on a machine whose cores are busy a second thread waits at every op's barrier:
