@@ -1,4 +1,4 @@
-"""The bench's policy section on its own (issue 9): paper vs default vs classical vs projection.
+"""The bench's policy section alone (issue 9): default, default (raw), paper, classical, projection.
 
     nice -n 10 python benchmarks/policy_section.py [--seeds 20] [--out benchmarks/results]
 
