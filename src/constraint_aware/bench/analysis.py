@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -243,19 +243,45 @@ def closed_loop_cases() -> list[Condition]:
     return conds
 
 
+class _SeededRun(Protocol):
+    """What `group_cells` reads of a run (RunResult, forces.RunDiagnosis)."""
+
+    @property
+    def seed(self) -> int: ...
+
+    @property
+    def condition(self) -> Condition: ...
+
+
+R = TypeVar("R", bound=_SeededRun)
+#: A cell: (axis, level, task, controller or variant label).
+CellKey = tuple[str, float, str, str]
+
+
+def group_cells(
+    runs: Iterable[R], key: Callable[[R], CellKey], labels: Sequence[str]
+) -> list[tuple[CellKey, list[R]]]:
+    """Runs grouped into cells by `key`, in a fixed order: axis, task, level, then the label's
+    place in `labels` (others last); inside a cell by seed, offset and condition, so that
+    float sums never depend on the order the runs were generated in."""
+    groups: dict[CellKey, list[R]] = {}
+    for r in runs:
+        groups.setdefault(key(r), []).append(r)
+    order = {name: i for i, name in enumerate(labels)}
+    return [
+        (k, sorted(groups[k], key=lambda r: (r.seed, r.condition.offset_deg, repr(r.condition))))
+        for k in sorted(groups, key=lambda k: (k[0], k[2], k[1], order.get(k[3], 99)))
+    ]
+
+
 def summarize(results: Iterable[RunResult]) -> list[CellSummary]:
     """One summary per (axis, level, task, controller), sorted by those keys."""
-    groups: dict[tuple[str, float, str, str], list[RunResult]] = {}
-    for r in results:
-        key = (r.condition.axis, r.condition.level, r.condition.task, r.controller)
-        groups.setdefault(key, []).append(r)
     out = []
-    order = {name: i for i, name in enumerate(POLICY_SECTION_CONTROLLERS)}
-    for key in sorted(groups, key=lambda k: (k[0], k[2], k[1], order.get(k[3], 99))):
-        # a fixed order inside the cell too: float sums must not depend on the run order
-        rows = sorted(
-            groups[key], key=lambda r: (r.seed, r.condition.offset_deg, repr(r.condition))
-        )
+    for key, rows in group_cells(
+        results,
+        lambda r: (r.condition.axis, r.condition.level, r.condition.task, r.controller),
+        tuple(POLICY_SECTION_CONTROLLERS),
+    ):
         out.append(
             CellSummary(
                 axis=key[0],

@@ -25,7 +25,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from constraint_aware import deadband
-from constraint_aware.bench.analysis import Condition, prepare_condition
+from constraint_aware.bench.analysis import CellKey, Condition, group_cells, prepare_condition
 from constraint_aware.control.controllers import (
     HAND_SMOOTHING,
     ControlInput,
@@ -301,23 +301,22 @@ def _nanmedian(values: Iterable[float]) -> float:
 def summarize(runs: Iterable[RunDiagnosis], aggregate_levels: bool = False) -> list[VariantSummary]:
     """One summary per (axis, level, task, variant), sorted by those keys (never by the order
     the runs came in); aggregate_levels: one cell per (axis, task, variant), level 0."""
-    groups: dict[tuple[str, float, str, str], list[RunDiagnosis]] = {}
-    for r in runs:
+
+    def cell_of(r: RunDiagnosis) -> CellKey:
         level = 0.0 if aggregate_levels else r.condition.level
-        groups.setdefault((r.condition.axis, level, r.condition.task, r.variant), []).append(r)
-    order = {name: i for i, name in enumerate(VARIANTS)}
+        return (r.condition.axis, level, r.condition.task, r.variant)
+
     out = []
-    for key in sorted(groups, key=lambda k: (k[0], k[2], k[1], order.get(k[3], 99))):
-        rows = sorted(groups[key], key=lambda r: (r.seed, r.condition.offset_deg))
+    for cell, rows in group_cells(runs, cell_of, tuple(VARIANTS)):
         outcomes: dict[str, int] = {}
         for r in rows:
             outcomes[r.outcome] = outcomes.get(r.outcome, 0) + 1
         out.append(
             VariantSummary(
-                axis=key[0],
-                level=key[1],
-                task=key[2],
-                variant=key[3],
+                axis=cell[0],
+                level=cell[1],
+                task=cell[2],
+                variant=cell[3],
                 n=len(rows),
                 successes=sum(r.success for r in rows),
                 outcomes=dict(sorted(outcomes.items())),
