@@ -31,6 +31,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 import constraint_aware
 from constraint_aware.errors import CapError, InvalidInputError, PolicyFileError, UnknownNameError
+from constraint_aware.geometry import FloatArray
 from constraint_aware.policy import (
     OBSERVATION_INPUTS,
     OBSERVATIONS,
@@ -282,8 +283,12 @@ class EvalCallback(BaseCallback):
     def evaluate_now(self) -> None:
         cfg = self.config
         policy = export_policy(self.model, observation_card(cfg.env))
+
+        def act(obs: FloatArray, _friction: FloatArray) -> FloatArray:
+            return policy.act_batch(obs)
+
         result = evaluate(
-            lambda obs, _friction: policy.act_batch(obs),
+            act,
             cfg.env,
             episodes=cfg.eval_episodes,
             seed=cfg.seed + 1,  # evaluation episodes differ from training and from the test set
@@ -311,7 +316,7 @@ class EvalCallback(BaseCallback):
         reached = result.mean_final_angle_deg
         if target is not None and cfg.target_evaluation == "standard":
             reached = evaluate(
-                lambda obs, _friction: policy.act_batch(obs),
+                act,
                 standard_env(cfg.env),
                 episodes=cfg.eval_episodes,
                 seed=cfg.seed + 1,
