@@ -78,6 +78,12 @@ def dead_band_card() -> dict[str, Any]:
     }
 
 
+def is_shipped(name_or_path: str | Path) -> bool:
+    """Whether `ConstraintAwarePolicy.load(name_or_path)` loads a shipped policy (one of
+    `POLICY_NAMES`) rather than a file; `load(None)` loads the shipped default."""
+    return isinstance(name_or_path, str) and name_or_path in POLICY_NAMES
+
+
 def shipped_policy_path(name: str = DEFAULT_POLICY_NAME) -> Path:
     """Path of a shipped policy's `.npz` inside the installed package (`POLICY_NAMES`)."""
     if name not in POLICY_NAMES:
@@ -217,10 +223,8 @@ class ConstraintAwarePolicy:
     def load(cls, name_or_path: str | Path | None = None) -> ConstraintAwarePolicy:
         """Load a shipped policy by name (`POLICY_NAMES`; None: "default") or a file
         (`.npz` plus its `.json` card beside it)."""
-        if name_or_path is None:
-            npz_path = shipped_policy_path()
-        elif isinstance(name_or_path, str) and name_or_path in POLICY_NAMES:
-            npz_path = shipped_policy_path(name_or_path)
+        if name_or_path is None or is_shipped(name_or_path):
+            npz_path = shipped_policy_path(str(name_or_path or DEFAULT_POLICY_NAME))
         else:
             npz_path = Path(name_or_path)
             if npz_path.suffix == ".json":

@@ -17,7 +17,7 @@ import numpy as np
 from constraint_aware.bench.sweep import PAPER_OFFSETS, run_many, success_table, suite_specs
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.errors import UnknownNameError
-from constraint_aware.policy import POLICY_NAMES, ConstraintAwarePolicy, shipped_log_path
+from constraint_aware.policy import ConstraintAwarePolicy, is_shipped, shipped_log_path
 from constraint_aware.sim.embodiment import DEFAULT_ROBOT, ROBOT_PARAMS, parse_robot
 from constraint_aware.sim.tasks import TASKS
 
@@ -72,7 +72,7 @@ def training_log_path(source: str | Path | None, policy: ConstraintAwarePolicy) 
     """The training log of the policy loaded from `source`: the one shipped beside a named
     policy, or `training_log.csv` beside a policy file (where `cap train` writes it); None
     when there is none."""
-    if source is None or (isinstance(source, str) and source in POLICY_NAMES):
+    if source is None or is_shipped(source):
         return shipped_log_path(str(source or policy.name))
     log = Path(source).parent / "training_log.csv"
     return log if log.is_file() else None

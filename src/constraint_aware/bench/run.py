@@ -26,7 +26,7 @@ from constraint_aware.bench.sweep import (
     use_executor,
 )
 from constraint_aware.errors import CapError
-from constraint_aware.policy import POLICY_NAMES, ConstraintAwarePolicy
+from constraint_aware.policy import ConstraintAwarePolicy, is_shipped
 from constraint_aware.sim.embodiment import DEFAULT_ROBOT
 from constraint_aware.sim.tasks import TASKS, task_config
 
@@ -124,7 +124,7 @@ def policy_identity(policy: ConstraintAwarePolicy, source: str | Path | None) ->
     for w, b in policy.layers:
         weights.update(w.astype("<f8").tobytes())
         weights.update(b.astype("<f8").tobytes())
-    shipped = source is None or (isinstance(source, str) and source in POLICY_NAMES)
+    shipped = source is None or is_shipped(source)
     return {
         "name": policy.name,
         "source": str(source) if source is not None else policy.name,
