@@ -351,3 +351,67 @@ def test_policy_controller_resets_its_session_each_run() -> None:
     ctrl.next_direction(inp)
     ctrl.reset(d)
     np.testing.assert_array_equal(ctrl.next_direction(inp), first)
+
+
+# --- mirror-symmetric action (policy.mirror_average) ---------------------------------------
+N_UP = np.array([0.0, 0.0, 1.0])
+MIRROR_Y = np.diag([1.0, -1.0, 1.0])  # reflection through the plane of d = x and n = z
+
+
+def _random_policy(observation: str, seed: int = 0) -> ConstraintAwarePolicy:
+    from constraint_aware.policy import OBSERVATIONS
+
+    layout = list(OBSERVATIONS[observation])
+    rng = np.random.default_rng(seed)
+    layers = [(rng.normal(size=(16, len(layout))), rng.normal(size=16))]
+    layers.append((rng.normal(size=(3, 16)), rng.normal(size=3)))
+    return ConstraintAwarePolicy(layers, {"observation_layout": layout})
+
+
+@pytest.mark.parametrize("magnitude", [0.3, 5.0, 20.0])
+def test_mirrored_action_keeps_d_exactly_under_pure_resistance(magnitude: float) -> None:
+    """By symmetry, a force straight against d gives no side to turn to: zero turn in the
+    workplane, where the network alone turns (the default by 0.8-7.6 deg, always one way)."""
+    d = np.array([1.0, 0.0, 0.0])
+    for policy in (POLICY, PAPER, _random_policy("magnitude_flag")):
+        new = policy.session().update_direction(
+            -magnitude * d, d, step_force=20.0, workplane_normal=N_UP
+        )
+        assert abs(float(new[1])) < 1e-12  # no in-plane turn at all
+    plain = POLICY.session().update_direction(-20.0 * d, d, step_force=20.0)
+    assert angle_deg(plain, d) > 1.0  # the bias the mirror removes is real
+
+
+@pytest.mark.parametrize("observation", ["paper", "history", "magnitude_flag"])
+def test_mirrored_action_is_equivariant(observation: str) -> None:
+    """update(M F) = M update(F) for the reflection M that keeps d and n: a misalignment of
+    +theta and of -theta get mirror-image corrections (also through a history session)."""
+    policy = _random_policy(observation, seed=3)
+    rng = np.random.default_rng(1)
+    d = np.array([1.0, 0.0, 0.0])  # M keeps it; history sessions see mirrored pasts too
+    a, b = policy.session(), policy.session()
+    for _ in range(4):
+        f = rng.normal(size=3) * 5.0
+        new = a.update_direction(f, d, step_force=20.0, workplane_normal=N_UP)
+        mirrored = b.update_direction(MIRROR_Y @ f, d, step_force=20.0, workplane_normal=N_UP)
+        np.testing.assert_allclose(mirrored, MIRROR_Y @ new, atol=1e-12)
+        plain = policy.session().update_direction(f, d, step_force=20.0)
+        plain_m = policy.session().update_direction(MIRROR_Y @ f, d, step_force=20.0)
+        assert not np.allclose(plain_m, MIRROR_Y @ plain, atol=1e-6)  # the network alone is not
+
+
+def test_mirrored_action_corrects_a_misalignment_like_the_plain_one() -> None:
+    """Away from pure resistance the mirror average changes little: the guide's push still
+    turns d most of the way back (the plain policy's case above)."""
+    u = np.array([1.0, 0.0, 0.0])
+    d = np.array([np.cos(0.5), np.sin(0.5), 0.0])
+    force = np.array([0.0, -10.0, 0.0])
+    new = POLICY.session().update_direction(force, d, step_force=20.0, workplane_normal=N_UP)
+    assert angle_deg(new, u) < 0.5 * angle_deg(d, u)
+
+
+def test_workplane_normal_is_validated_by_name() -> None:
+    with pytest.raises(InvalidInputError, match="workplane_normal"):
+        POLICY.session().update_direction(
+            [0.0, -5.0, 0.0], [1.0, 0.0, 0.0], workplane_normal=[np.nan, 0.0, 1.0]
+        )

@@ -127,6 +127,7 @@ class DirectionUpdater:
         force_offset: ArrayLike | None = None,
         threshold: float | None = None,
         step_force: float | None = None,
+        workplane_normal: ArrayLike | None = None,
     ) -> FloatArray:
         """The next motion direction d_{t+1} (3,) from a raw wrist force and d_t (paper 3.4.2).
 
@@ -136,12 +137,20 @@ class DirectionUpdater:
         samples): if |F| < threshold the direction is returned unchanged. step_force [N]:
         the robot's stiffness times the step length (k*delta), used by policies whose card
         lists it in `inputs`; without it they get zero there (trained for that case too).
+        workplane_normal: (3,) the workplane's normal n, when known (paper assumption 4).
+        Given, the action is made mirror-symmetric (`mirror_average`): a misalignment of
+        +theta and one of -theta about n are mirror images, so their corrections must be too,
+        and a force straight against d turns d by exactly zero. Without it (the default) the
+        network's action is used as it is, as in the paper.
         """
         p = self.policy
         f = as_vector(force, "force")
         d = as_vector(direction, "direction")
         if force_offset is not None:
             f = f - as_vector(force_offset, "force_offset")
+        normal = None
+        if workplane_normal is not None:
+            normal = as_vector(workplane_normal, "workplane_normal")
         thr = p.threshold if threshold is None else float(threshold)
         if not np.isfinite(thr) or thr < 0:
             raise InvalidInputError(f"threshold: must be finite and >= 0 [N], got {threshold}")
@@ -169,8 +178,40 @@ class DirectionUpdater:
             obs = current
         if not np.any(f_hat):
             return d
-        a = p.action_scale * p.act_batch(obs[None, :])[0]
-        return np.asarray(update_direction_rule(d, a))
+        # without a workplane normal: the network's action as it is (the paper's rule)
+        a = p.act_batch(obs[None, :])[0] if normal is None else mirror_average(p, obs, d, normal)
+        return np.asarray(update_direction_rule(d, p.action_scale * a))
+
+
+def mirror_average(
+    policy: ConstraintAwarePolicy, obs: FloatArray, direction: FloatArray, normal: FloatArray
+) -> FloatArray:
+    """The policy's action made exactly mirror-symmetric: (pi(s) + M pi(M s)) / 2, (3,).
+
+    M = I - 2 m m^T reflects through the plane spanned by d and the workplane normal n
+    (m = unit(n x d), the in-plane direction across d). The single-system physics is
+    symmetric under M (M d = d, M n = n; a misalignment of +theta becomes -theta), so the
+    ideal policy satisfies pi(M s) = M pi(s); the trained network does only approximately
+    (the default policy turns a force straight against d by 0.8 deg at 5 N, 7.6 deg at
+    20 N, always to the same side). Averaging over the two-element group {I, M} removes that
+    bias exactly without retraining. M acts on every 3-vector of the observation (F/|F|, d
+    and, for history layouts, the previous step's); the scalars (|F|/(k delta), the flag)
+    are invariant. obs: (n_in,) the observation of `direction` (3,) unit d;
+    normal: (3,) not parallel to d (else the plain action is returned).
+    """
+    m = np.cross(normal, direction)
+    norm = float(np.linalg.norm(m))
+    if norm < 1e-9:  # d along n: no in-plane side to mirror
+        return policy.act_batch(obs[None, :])[0]
+    m = m / norm
+    mirror = np.eye(3) - 2.0 * np.outer(m, m)
+    mirrored = obs.copy()
+    layout = policy.observation_layout
+    for start, name in enumerate(layout):  # each 3-vector block: names *_x, *_y, *_z
+        if name.endswith("_x"):
+            mirrored[start : start + 3] = mirror @ obs[start : start + 3]
+    a, a_mirrored = policy.act_batch(np.stack([obs, mirrored]))
+    return np.asarray(0.5 * (a + mirror @ a_mirrored))
 
 
 class ConstraintAwarePolicy:
@@ -341,13 +382,17 @@ class ConstraintAwarePolicy:
         force_offset: ArrayLike | None = None,
         threshold: float | None = None,
         step_force: float | None = None,
+        workplane_normal: ArrayLike | None = None,
     ) -> FloatArray:
         """d_{t+1} (3,): `DirectionUpdater.update_direction` on this policy's own session.
 
-        force, force_offset: (3,) [N] F_s and F_d, world frame; direction: (3,) unit d_t.
+        force, force_offset: (3,) [N] F_s and F_d, world frame; direction: (3,) unit d_t;
+        workplane_normal: (3,) n when known (mirror-symmetric action, see there).
         Policies with history remember the previous call; `reset()` starts a new run.
         """
-        return self._session.update_direction(force, direction, force_offset, threshold, step_force)
+        return self._session.update_direction(
+            force, direction, force_offset, threshold, step_force, workplane_normal
+        )
 
     @property
     def layers(self) -> list[tuple[FloatArray, FloatArray]]:
