@@ -3,6 +3,7 @@ the one closed-loop run at the end)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -74,6 +75,17 @@ def test_a_reversing_proposal_halves_the_gain_down_to_its_floor() -> None:
     assert turns[1] == pytest.approx(-5.0)  # reversal: gain 0.5
     assert turns[2] == pytest.approx(2.5)
     assert abs(turns[-1]) == pytest.approx(10.0 * cfg.min_gain)  # never below the floor
+
+
+def test_a_reversal_bigger_than_the_last_proposal_is_not_an_overshoot() -> None:
+    """A 0.5 deg proposal cannot have overshot by 10 deg: the full correction goes through
+    (the door's first, nearly pure-resistance reading); stop 17's rule halved it."""
+    cfg = SteadyConfig(confidence_ramp=False, rotation_feedforward=False)
+    turns = _applied(SteadyDirection(Scripted([0.5, -10.0, 4.0]), config=cfg), 3)
+    assert turns == pytest.approx([0.5, -10.0, 2.0])  # the smaller reversal is one
+    old = dataclasses.replace(cfg, strict_reversal=False)
+    turns = _applied(SteadyDirection(Scripted([0.5, -10.0, 4.0]), config=old), 3)
+    assert turns == pytest.approx([0.5, -5.0, 1.0])  # halved twice: each proposal reversed
 
 
 def test_a_persistent_proposal_keeps_or_regains_the_full_gain() -> None:
@@ -168,3 +180,16 @@ def test_steady_opens_the_door_in_closed_loop() -> None:
     record, _ = run(RunSpec("door-opening", "policy", 15.0, seed=0))
     assert record.label["policy"] == "default"
     assert record.success, record.reason
+
+
+def test_controller_policy_mirrors_the_action_and_policy_raw_does_not() -> None:
+    """Controller "policy" gives the mirror-averaged action (a force straight against d keeps
+    d exactly); "policy-raw" is the paper's rule with the network's action as it is."""
+    policy = ConstraintAwarePolicy.load()
+    inp = ControlInput(np.array([-20.0, 0.0, 0.0]), np.zeros(3), X, DT, 0.4, N, 20.0)
+    raw = make_controller("policy-raw", policy)
+    steady = make_controller("policy", policy)
+    for ctrl in (raw, steady):
+        ctrl.reset(X)
+    assert abs(_signed_deg(X, raw.next_direction(inp))) > 1.0
+    assert _signed_deg(X, steady.next_direction(inp)) == pytest.approx(0.0, abs=1e-9)

@@ -108,22 +108,31 @@ class PolicyController(_Base):
 
     name = "policy-raw"
 
-    def __init__(self, policy: ConstraintAwarePolicy | None = None) -> None:
+    def __init__(self, policy: ConstraintAwarePolicy | None = None, mirror: bool = False) -> None:
         self.policy = policy or ConstraintAwarePolicy.load()
         self.session = self.policy.session()
+        # mirror: the action averaged with its mirror image about the workplane normal, when
+        # the workplane is known (policy.mirror_average); off for the paper's rule as published
+        self.mirror = mirror
+        if mirror:
+            self.name = "policy-mirrored"
 
     def reset(self, direction: FloatArray) -> None:
         self.session.reset()
 
     def next_direction(self, inp: ControlInput) -> FloatArray:
         return self.session.update_direction(
-            inp.force, inp.direction, threshold=inp.threshold, step_force=inp.step_force
+            inp.force,
+            inp.direction,
+            threshold=inp.threshold,
+            step_force=inp.step_force,
+            workplane_normal=inp.workplane_normal if self.mirror else None,
         )
 
 
 #: Overshoot damping, Rprop's step factors (Riedmiller & Braun, ICNN 1993, eta- and eta+):
-#: a proposed turn that reverses the last one halves the gain on the turns, one that keeps its
-#: sense lets the gain grow back by 1.2 (up to 1).
+#: a proposed turn that reverses the last proposal, by no more than it, halves the gain on the
+#: turns; any other lets the gain grow back by 1.2 (up to 1).
 OVERSHOOT_FACTOR = 0.5
 RECOVERY_FACTOR = 1.2
 #: The smallest gain: a tenth of the proposed turn still corrects a persistent error.
@@ -140,7 +149,12 @@ class SteadyConfig:
     confidence_ramp: the turn is scaled by clip((|F| - threshold) / threshold, 0, 1): a force
     just above the dead band is mostly noise (the band is 4 sigma of it), its direction is not
     trusted, from twice the band on it is fully. overshoot_damping: Rprop's gain on the turns
-    (OVERSHOOT_FACTOR, RECOVERY_FACTOR, MIN_TURN_GAIN). rotation_feedforward: with a known
+    (OVERSHOOT_FACTOR, RECOVERY_FACTOR, MIN_TURN_GAIN); strict_reversal: only a proposal that
+    turns back by no more than the last proposal counts as its overshoot. A turn g*p of a
+    proposal p that overshot the error e leaves |e'| = g|p| - |e| <= |p|: a bigger reversal is
+    an error the last proposal did not see (after a first reading of a resisting object that
+    said little, the door's 0.4 deg proposal and then its 13 deg correction), not an overshoot.
+    Stop 17's rule counted any reversal. rotation_feedforward: with a known
     rotation rate w [rad/s] (revolute, w = v / r, what the classical controller is given), d
     also turns by w dt between consecutive moves and the hand turns by w dt each step; without
     it the hand turns by the smoothed applied turn (HAND_SMOOTHING) instead of each step's.
@@ -148,6 +162,7 @@ class SteadyConfig:
 
     confidence_ramp: bool = True
     overshoot_damping: bool = True
+    strict_reversal: bool = True
     rotation_feedforward: bool = True
     overshoot_factor: float = OVERSHOOT_FACTOR
     recovery_factor: float = RECOVERY_FACTOR
@@ -218,9 +233,12 @@ class SteadyDirection(_Base):
         if proposed.shape != (3,) or not np.all(np.isfinite(proposed)):
             return proposed  # the executor stops on it ("bad_command"), naming it
         turn = turn_vector(d, unit(proposed))
-        if cfg.overshoot_damping and np.linalg.norm(turn) > 1e-9:
-            # the inner controller's own proposals: one that reverses the last overshot
-            if float(turn @ self._last_turn) < 0:
+        size = float(np.linalg.norm(turn))
+        if cfg.overshoot_damping and size > 1e-9:
+            overshot = float(turn @ self._last_turn) < 0  # stop 17: any reversal
+            if cfg.strict_reversal:  # ... by no more than the last proposal
+                overshot = overshot and size <= float(np.linalg.norm(self._last_turn)) + 1e-12
+            if overshot:
                 self.gain = max(self.gain * cfg.overshoot_factor, cfg.min_gain)
             else:
                 self.gain = min(self.gain * cfg.recovery_factor, 1.0)
@@ -262,7 +280,8 @@ def make_controller(
 ) -> DirectionController:
     """A controller by name: policy, policy-raw, fixed, projection or classical.
 
-    "policy" is the learned policy as this library runs it: inside `SteadyDirection`, which
+    "policy" is the learned policy as this library runs it: its action mirror-averaged about
+    the known workplane normal (`policy.mirror_average`) and inside `SteadyDirection`, which
     it measured better than the policy alone on every task and both robots
     (docs/forces.md); "policy-raw" is the paper's rule d <- (d + pi(s)) / |...| alone, the
     faithful reproduction. rotation_rate [rad/s] and rotation_axis (3,) give the classical
@@ -271,7 +290,8 @@ def make_controller(
     controller's gains (ClassicalGains fields).
     """
     if name == "policy":
-        return SteadyDirection(PolicyController(policy), rotation_rate, name="policy")
+        inner = PolicyController(policy, mirror=True)
+        return SteadyDirection(inner, rotation_rate, name="policy")
     if name == "policy-raw":
         return PolicyController(policy)
     if name == "fixed":
