@@ -41,9 +41,9 @@ from constraint_aware.bench.forces import (
 )
 from constraint_aware.policy import ConstraintAwarePolicy
 
-DIAGNOSED = ("default", "classical", "steady")
+DIAGNOSED = ("default", "classical", "steady", "steady: stop 17")
 MAP_VARIANTS = ("default", "classical", "steady", "steady: no known rate")
-MAIN_VARIANTS = ("default", "classical", "steady")
+MAIN_VARIANTS = ("default", "classical", "steady", "steady: stop 17")
 
 
 def _runs(
@@ -72,11 +72,14 @@ def render(data: dict[str, Any]) -> list[str]:
     ]
     acrosses = sorted({p["across_N"] for p in data["probe"]})
     lines.append("|---|" + "---|" * len(acrosses))
-    for along in sorted({p["along_N"] for p in data["probe"]}, reverse=True):
-        row = {p["across_N"]: p for p in data["probe"] if p["along_N"] == along}
-        lines.append(
-            f"| {along:g} | " + " | ".join(f"{row[a]['turn_deg']:.1f}" for a in acrosses) + " |"
-        )
+    for key, label in (("turn_deg", "alone"), ("mirrored_turn_deg", "mirror-averaged")):
+        for along in sorted({p["along_N"] for p in data["probe"]}, reverse=True):
+            row = {p["across_N"]: p for p in data["probe"] if p["along_N"] == along}
+            lines.append(
+                f"| {along:g} ({label}) | "
+                + " | ".join(f"{row[a][key]:.1f}" for a in acrosses)
+                + " |"
+            )
     lines += [
         "",
         "Implied error asin(across / k delta): "

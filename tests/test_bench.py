@@ -32,6 +32,7 @@ def _shown_numbers(markdown: str) -> list[str]:
     text = re.sub(r"\]\([^)]*\)", "]", markdown)  # figure file names
     text = re.sub(r"`[^`]*`", "", text)  # code: file and command names
     text = re.sub(r"[A-Za-z_]+\d+[A-Za-z_\d]*", "", text)  # identifiers like fig6, p95
+    text = re.sub(r"\b(?:paper|section|appendix)\s+\d+(?:\.\d+)*", "", text)  # "paper 3.3"
     # a minus sign, not the hyphen of a range such as "figs. 7-8"
     return [m.replace(",", "") for m in re.findall(r"(?:(?<!\d)-)?\d[\d,]*(?:\.\d+)?", text)]
 

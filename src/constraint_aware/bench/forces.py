@@ -8,7 +8,8 @@ step-to-step turn is the zig-zag); `summarize` groups them by their own keys int
 
 Variants (`VARIANTS`): the default policy alone (controller "policy-raw"), the classical
 controller (unchanged gains), the projection controller, `SteadyDirection` around the policy
-with each of its parts alone and together (together: controller "policy"), and around the
+with each of its parts alone and together (together, with the mirror-averaged action:
+controller "policy"; and as stop 17 shipped it), and around the
 projection controller (the wrapper is not specific to the policy); and two rejected
 candidates kept for their numbers: a curvature feed-forward estimated from d's own recent
 turns, and two policy sub-steps per control step.
@@ -52,12 +53,12 @@ STEADY_FROM = 10
 ControllerFactory = Callable[[ConstraintAwarePolicy, float | None, FloatArray], DirectionController]
 
 
-def _steady(config: SteadyConfig, inner: str = "policy") -> ControllerFactory:
+def _steady(config: SteadyConfig, inner: str = "policy", mirror: bool = True) -> ControllerFactory:
     def build(
         policy: ConstraintAwarePolicy, rate: float | None, normal: FloatArray
     ) -> DirectionController:
         base: DirectionController = (
-            PolicyController(policy) if inner == "policy" else ProjectionController()
+            PolicyController(policy, mirror) if inner == "policy" else ProjectionController()
         )
         return SteadyDirection(base, rate, config)
 
@@ -145,11 +146,16 @@ def _wrapped(kind: str) -> ControllerFactory:
 _OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False)
 
 #: label -> controller factory. "default" is the default policy alone (controller "policy-raw"),
-#: "steady" the full wrapper around it (controller "policy", the library's default).
+#: "steady" the full wrapper around it with the mirror-averaged action (controller "policy",
+#: the library's default); "steady: stop 17" is that controller as stop 17 shipped it (no
+#: mirror, any reversal counts as an overshoot), and the two after it undo one change each.
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
-    "steady": _named("policy"),  # the same inside SteadyDirection: controller "policy"
+    "steady": _named("policy"),  # mirrored, inside SteadyDirection: controller "policy"
+    "steady: stop 17": _steady(SteadyConfig(strict_reversal=False), mirror=False),
+    "steady: no mirror": _steady(SteadyConfig(), mirror=False),
+    "steady: any reversal": _steady(SteadyConfig(strict_reversal=False)),
     "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
     "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
     "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),
@@ -368,7 +374,7 @@ def table_lines(cells: list[VariantSummary], variants: Iterable[str]) -> list[st
 #: The probe's forces [N]: along -d (the object's resistance) and across d (the constraint
 #: force of a misaligned move), the scale of the door's and drawer's steady forces.
 PROBE_ALONG_N = (0.0, -0.5, -1.0, -2.0)
-PROBE_ACROSS_N = (0.2, 0.5, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0)
+PROBE_ACROSS_N = (0.0, 0.2, 0.5, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0)
 
 
 @dataclass(frozen=True)
@@ -380,6 +386,7 @@ class TurnProbe:
     turn_deg: float
     implied_error_deg: float  # asin(across / step_force): the error a quasi-static blocked
     # step would need to produce that force across d
+    mirrored_turn_deg: float  # the same with the mirror-averaged action (controller "policy")
 
 
 def probe_turns(
@@ -387,19 +394,29 @@ def probe_turns(
 ) -> list[TurnProbe]:
     """One update_direction per force from a fresh session (d = x, workplane normal z)."""
     d = np.array([1.0, 0.0, 0.0])
+    normal = np.array([0.0, 0.0, 1.0])
+
+    def turn(force: FloatArray, mirror: bool) -> float:
+        nxt = policy.session().update_direction(
+            force,
+            d,
+            threshold=threshold,
+            step_force=step_force,
+            workplane_normal=normal if mirror else None,
+        )
+        return math.degrees(math.atan2(float(nxt[1]), float(nxt[0])))
+
     out = []
     for along in PROBE_ALONG_N:
         for across in PROBE_ACROSS_N:
-            session = policy.session()
-            nxt = session.update_direction(
-                np.array([along, across, 0.0]), d, threshold=threshold, step_force=step_force
-            )
+            force = np.array([along, across, 0.0])
             out.append(
                 TurnProbe(
                     along,
                     across,
-                    math.degrees(math.atan2(float(nxt[1]), float(nxt[0]))),
+                    turn(force, False),
                     math.degrees(math.asin(min(1.0, across / step_force))),
+                    turn(force, True),
                 )
             )
     return out

@@ -283,9 +283,10 @@ def policy_section_lines(sec: PolicySection) -> list[str]:
     lines.append(
         f"Every controller runs with the dead band derived from the sensor noise "
         f"({_f(sec.sensor_noise_N, 1)} N per axis: {_f(sec.threshold_N, 1)} N), not a hand-set "
-        "one. `default` is the default policy as controller `policy` runs it, inside "
-        "SteadyDirection (docs/forces.md): a confidence ramp on |F|, overshoot damping and, on "
-        "revolute joints, the rotation rate v / r the classical controller is also given. "
+        "one. `default` is the default policy as controller `policy` runs it: its action "
+        "averaged with its mirror image about the workplane normal, inside SteadyDirection "
+        "(docs/forces.md): a confidence ramp on |F|, overshoot damping and, on revolute "
+        "joints, the rotation rate v / r the classical controller is also given. "
         "`default (raw)` and `paper` are the policies alone (controller `policy-raw`, paper "
         "3.3's d + pi(s)). Cells: successes / runs, median peak |F| [N], mean |F| [N].\n"
     )
