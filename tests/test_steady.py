@@ -186,7 +186,7 @@ def test_controller_policy_mirrors_the_action_and_policy_raw_does_not() -> None:
     """Controller "policy" gives the mirror-averaged action (a force straight against d keeps
     d exactly); "policy-raw" is the paper's rule with the network's action as it is."""
     policy = ConstraintAwarePolicy.load()
-    inp = ControlInput(np.array([-20.0, 0.0, 0.0]), np.zeros(3), X, DT, 0.4, N, 20.0)
+    inp = ControlInput(np.array([-19.9, 0.0, 0.0]), np.zeros(3), X, DT, 0.4, N, 20.0)
     raw = make_controller("policy-raw", policy)
     steady = make_controller("policy", policy)
     for ctrl in (raw, steady):

@@ -138,10 +138,13 @@ class DirectionUpdater:
         the robot's stiffness times the step length (k*delta), used by policies whose card
         lists it in `inputs`; without it they get zero there (trained for that case too).
         workplane_normal: (3,) the workplane's normal n, when known (paper assumption 4).
-        Given, the action is made mirror-symmetric (`mirror_average`): a misalignment of
-        +theta and one of -theta about n are mirror images, so their corrections must be too,
-        and a force straight against d turns d by exactly zero. Without it (the default) the
-        network's action is used as it is, as in the paper.
+        Given with step_force, the action is made mirror-symmetric (`mirror_average`) for
+        every reading below the step force: a misalignment of +theta and one of -theta about
+        n are mirror images, so their corrections must be too, and a force straight against
+        d turns d by exactly zero. A reading of at least k*delta is a blocked step, whose
+        force is about -d whatever the error: it carries no side, a symmetric action would
+        not turn at all, and the network's own choice of side is kept. Without n or k*delta
+        (the defaults) the network's action is used as it is, as in the paper.
         """
         p = self.policy
         f = as_vector(force, "force")
@@ -178,8 +181,13 @@ class DirectionUpdater:
             obs = current
         if not np.any(f_hat):
             return d
-        # without a workplane normal: the network's action as it is (the paper's rule)
-        a = p.act_batch(obs[None, :])[0] if normal is None else mirror_average(p, obs, d, normal)
+        blocked = step_force is None or float(np.linalg.norm(f)) >= step_force
+        # the network's action as it is (the paper's rule) without n, or for a blocked step
+        a = (
+            p.act_batch(obs[None, :])[0]
+            if normal is None or blocked
+            else mirror_average(p, obs, d, normal)
+        )
         return np.asarray(update_direction_rule(d, p.action_scale * a))
 
 
@@ -192,12 +200,14 @@ def mirror_average(
     (m = unit(n x d), the in-plane direction across d). The single-system physics is
     symmetric under M (M d = d, M n = n; a misalignment of +theta becomes -theta), so the
     ideal policy satisfies pi(M s) = M pi(s); the trained network does only approximately
-    (the default policy turns a force straight against d by 0.8 deg at 5 N, 7.6 deg at
-    20 N, always to the same side). Averaging over the two-element group {I, M} removes that
-    bias exactly without retraining. M acts on every 3-vector of the observation (F/|F|, d
-    and, for history layouts, the previous step's); the scalars (|F|/(k delta), the flag)
-    are invariant. obs: (n_in,) the observation of `direction` (3,) unit d;
-    normal: (3,) not parallel to d (else the plain action is returned).
+    (a force straight against d turns d within the workplane by 0.8 deg at 5 N and 3.3 deg
+    at 15 N with k delta = 20 N, each to a side of the network's choosing). Averaging over
+    the two-element group {I, M} removes that bias exactly without retraining
+    (`DirectionUpdater.update_direction` applies it below the step force only). M acts on
+    every 3-vector of the observation (F/|F|, d and, for history layouts, the previous
+    step's); the scalars (|F|/(k delta), the flag) are invariant. obs: (n_in,) the
+    observation of `direction` (3,) unit d; normal: (3,) not parallel to d (else the plain
+    action is returned).
     """
     m = np.cross(normal, direction)
     norm = float(np.linalg.norm(m))
