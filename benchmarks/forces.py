@@ -104,6 +104,26 @@ def render(data: dict[str, Any]) -> list[str]:
             f"{c.steady_lag_deg:.2f} | {c.steady_error_deg:.2f} | {c.turn_rms_deg:.2f} | "
             f"{c.path_turn_deg:.2f} | {c.median_slip_deg:.1f} |"
         )
+    lines += [
+        "",
+        "## The main correction (suite and paper offsets, runs that begin >= 2 deg off)",
+        "",
+        "The biggest turn of d in the first steps: the error its reading saw, the turn toward "
+        "the truth over that error (1: exactly onto the path; above 1: past it, which also "
+        "relieves the arm's across deflection), and the reading's |F| across d over the "
+        "k delta sin(error) of a settled, rigidly guided hand.",
+        "",
+        "| set | task | variant | error deg | turn / error | reading / quasi-static |",
+        "|---|---|---|---|---|---|",
+    ]
+    for key in ("suite", "paper_offsets_noise_seeds"):
+        for c in cells(key):
+            if c.variant in MAIN_VARIANTS and c.task in ("door-opening", "drawer-opening"):
+                lines.append(
+                    f"| {key} | {c.task} | {c.variant} | {c.median_correction_error_deg:.1f} | "
+                    f"{c.median_correction_turn_share:.2f} | "
+                    f"{c.median_correction_reading_share:.2f} |"
+                )
     variants = list(VARIANTS)
     lines += ["", "## Randomized suite", "", *table_lines(cells("suite"), variants)]
     lines += ["", "## The paper's offsets", "", *table_lines(cells("paper_offsets"), variants)]

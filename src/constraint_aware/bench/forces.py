@@ -18,6 +18,7 @@ turns, and two policy sub-steps per control step.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -38,7 +39,7 @@ from constraint_aware.control.controllers import (
     make_controller,
 )
 from constraint_aware.control.executor import Executor
-from constraint_aware.control.record import RunRecord
+from constraint_aware.control.record import RunRecord, StepRecord
 from constraint_aware.control.simulate import RunSpec
 from constraint_aware.geometry import FloatArray, turn_vector, unit
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -47,6 +48,9 @@ from constraint_aware.policy import ConstraintAwarePolicy
 TRANSIENT_STEPS = 5
 #: ... and the first step counted as steady (the transient has settled by then in every run).
 STEADY_FROM = 10
+#: [deg] runs that begin at least this far off enter the main-correction medians (a smaller
+#: offset is within the noise of the first readings: its turn over its error is noise too)
+CORRECTION_MIN_OFFSET_DEG = 2.0
 
 #: A variant builds its controller from (policy, rotation rate [rad/s] or None, oriented
 #: workplane normal (3,)).
@@ -190,17 +194,47 @@ class RunDiagnosis:
     turn_rms_deg: float  # RMS of d's step-to-step turn there (the zig-zag)
     path_turn_deg: float  # the object's turn per step, delta / r (revolute; 0 prismatic)
     median_slip_deg: float  # hand-handle rotation drift, median over the run
+    # The main correction: the biggest turn of d decided in the first TRANSIENT_STEPS steps.
+    correction_error_deg: float  # |angle(d, truth)| of the move whose reading decided it
+    correction_turn_deg: float  # the turn, signed: + toward the truth
+    correction_reading_share: float  # that reading's |F| across d in the workplane over the
+    # quasi-static k delta sin(error) of a settled, rigidly guided hand (nan without k delta)
 
 
 def _signed_deg(a: FloatArray, b: FloatArray, normal: FloatArray) -> float:
     return math.degrees(math.atan2(float(np.cross(a, b) @ normal), float(a @ b)))
 
 
+def _main_correction(
+    steps: list[StepRecord], normal: FloatArray, step_force: float | None
+) -> tuple[float, float, float]:
+    """(error, signed turn, reading share) of the biggest turn d_i -> d_i+1 decided from the
+    readings of steps 1 .. TRANSIENT_STEPS - 1 (step 0 reads before any move)."""
+    best: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    size = 0.0
+    for s, nxt in itertools.pairwise(steps[1 : TRANSIENT_STEPS + 1]):
+        if s.admissible_direction is None:
+            continue
+        d, truth = np.asarray(s.direction), np.asarray(s.admissible_direction)
+        turn = _signed_deg(d, np.asarray(nxt.direction), normal)
+        if abs(turn) <= size:
+            continue
+        size = abs(turn)
+        to_truth = _signed_deg(d, truth, normal)
+        error = abs(to_truth)
+        across = abs(float(np.asarray(s.force) @ np.cross(normal, d)))
+        quasi_static = step_force * math.sin(math.radians(error)) if step_force else 0.0
+        share = across / quasi_static if quasi_static > 0 else math.nan
+        best = (error, math.copysign(abs(turn), turn * to_truth), share)
+    return best
+
+
 def diagnose(
     record: RunRecord, condition: Condition, variant: str, seed: int, normal: FloatArray,
-    path_turn_deg: float,
+    path_turn_deg: float, step_force: float | None = None,
 ) -> RunDiagnosis:  # fmt: skip
-    """The run's forces and direction errors from its step records."""
+    """The run's forces and direction errors from its step records; step_force [N]: the
+    robot's k delta (for the main correction's reading share)."""
     steps = [s for s in record.steps if math.isfinite(s.force_norm)]
     forces = np.array([s.force_norm for s in steps])
     steady = steps[STEADY_FROM:]
@@ -223,6 +257,7 @@ def diagnose(
         return float(np.mean(v)) if v else math.nan
 
     slips = [s.slip_deg for s in steps if math.isfinite(s.slip_deg)]
+    error, turn, share = _main_correction(steps, normal, step_force)
     return RunDiagnosis(
         condition=condition,
         variant=variant,
@@ -242,6 +277,9 @@ def diagnose(
         turn_rms_deg=float(np.sqrt(np.mean(np.square(turns)))) if turns else math.nan,
         path_turn_deg=path_turn_deg,
         median_slip_deg=float(np.median(slips)) if slips else math.nan,
+        correction_error_deg=error,
+        correction_turn_deg=turn,
+        correction_reading_share=share,
     )
 
 
@@ -267,7 +305,9 @@ def run_variant(
     path_turn = math.degrees(cfg.step_length / radius) if radius else 0.0
     ctrl = VARIANTS[variant](policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
-    return diagnose(record, cond, variant, seed, normal, path_turn)
+    stiffness = getattr(sim, "translational_stiffness", None)
+    step_force = None if stiffness is None else float(stiffness) * cfg.step_length
+    return diagnose(record, cond, variant, seed, normal, path_turn, step_force)
 
 
 @dataclass(frozen=True)
@@ -292,6 +332,10 @@ class VariantSummary:
     median_peak_step: float
     median_slip_deg: float
     path_turn_deg: float
+    # the main corrections of runs that began >= 2 deg off (medians; nan if none):
+    median_correction_error_deg: float  # the error its reading saw
+    median_correction_turn_share: float  # the turn toward the truth over that error
+    median_correction_reading_share: float  # the reading's across force over k delta sin(error)
 
 
 def _nanmean(values: Iterable[float]) -> float:
@@ -317,6 +361,7 @@ def summarize(runs: Iterable[RunDiagnosis], aggregate_levels: bool = False) -> l
         outcomes: dict[str, int] = {}
         for r in rows:
             outcomes[r.outcome] = outcomes.get(r.outcome, 0) + 1
+        big = [r for r in rows if abs(r.condition.offset_deg) >= CORRECTION_MIN_OFFSET_DEG]
         out.append(
             VariantSummary(
                 axis=cell[0],
@@ -337,6 +382,11 @@ def summarize(runs: Iterable[RunDiagnosis], aggregate_levels: bool = False) -> l
                 median_peak_step=float(np.median([r.peak_step for r in rows])),
                 median_slip_deg=_nanmedian(r.median_slip_deg for r in rows),
                 path_turn_deg=rows[0].path_turn_deg,
+                median_correction_error_deg=_nanmedian(r.correction_error_deg for r in big),
+                median_correction_turn_share=_nanmedian(
+                    r.correction_turn_deg / r.correction_error_deg for r in big
+                ),
+                median_correction_reading_share=_nanmedian(r.correction_reading_share for r in big),
             )
         )
     return out
