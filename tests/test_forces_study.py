@@ -64,3 +64,48 @@ def test_the_probe_covers_its_grid_and_reports_the_implied_error() -> None:
     for p in probe:
         assert math.isfinite(p.turn_deg)
         assert p.implied_error_deg == pytest.approx(math.degrees(math.asin(p.across_N / 20.0)))
+
+
+def test_the_main_correction_is_read_against_ground_truth() -> None:
+    """A scripted run: d starts 10 deg off x; the reading after the first move shows half the
+    quasi-static across force; the next direction turns 12 deg onto the far side (past the
+    path). The main correction is that turn: error 10, turn +12, reading share 0.5."""
+    from constraint_aware.bench.forces import _main_correction
+    from constraint_aware.control.record import StepRecord
+
+    normal = np.array([0.0, 0.0, 1.0])
+    k_delta = 20.0
+
+    def at(deg: float) -> list[float]:
+        return [math.cos(math.radians(deg)), math.sin(math.radians(deg)), 0.0]
+
+    across = 0.5 * k_delta * math.sin(math.radians(10.0))
+    # the guide pushes d back toward x: F across d points to -y side of d
+    push = -across * np.cross(normal, np.array(at(10.0)))
+    forces = [np.zeros(3), push - np.array(at(10.0)), np.zeros(3), np.zeros(3)]
+    angles = [10.0, 10.0, -2.0, -2.0]
+    steps = [
+        StepRecord(
+            i,
+            at(a),
+            list(f),
+            float(np.linalg.norm(f)),
+            [0.0] * 3,
+            [0.0] * 3,
+            None,
+            [1.0, 0.0, 0.0],
+            abs(a),
+            0.0,
+            0.0,
+            0.0,
+            None,
+        )
+        for i, (a, f) in enumerate(zip(angles, forces, strict=True))
+    ]
+    error, turn, share = _main_correction(steps, normal, k_delta)
+    assert error == pytest.approx(10.0)
+    assert turn == pytest.approx(12.0)
+    assert share == pytest.approx(0.5)
+    away = [dataclasses.replace(s, direction=at(-a)) for s, a in zip(steps, angles, strict=True)]
+    assert _main_correction(away, normal, k_delta)[1] == pytest.approx(12.0)  # sign: toward truth
+    assert math.isnan(_main_correction(steps, normal, None)[2])  # no k delta, no share
