@@ -77,15 +77,15 @@ def test_a_reversing_proposal_halves_the_gain_down_to_its_floor() -> None:
     assert abs(turns[-1]) == pytest.approx(10.0 * cfg.min_gain)  # never below the floor
 
 
-def test_a_reversal_bigger_than_the_last_proposal_is_not_an_overshoot() -> None:
-    """A 0.5 deg proposal cannot have overshot by 10 deg: the full correction goes through
-    (the door's first, nearly pure-resistance reading); stop 17's rule halved it."""
+def test_the_strict_reversal_option_lets_a_bigger_reversal_through() -> None:
+    """Any reversal halves the gain (the default); the rejected strict test (SteadyConfig)
+    lets a reversal bigger than the last proposal through in full."""
     cfg = SteadyConfig(confidence_ramp=False, rotation_feedforward=False)
     turns = _applied(SteadyDirection(Scripted([0.5, -10.0, 4.0]), config=cfg), 3)
-    assert turns == pytest.approx([0.5, -10.0, 2.0])  # the smaller reversal is one
-    old = dataclasses.replace(cfg, strict_reversal=False)
-    turns = _applied(SteadyDirection(Scripted([0.5, -10.0, 4.0]), config=old), 3)
     assert turns == pytest.approx([0.5, -5.0, 1.0])  # halved twice: each proposal reversed
+    strict = dataclasses.replace(cfg, strict_reversal=True)
+    turns = _applied(SteadyDirection(Scripted([0.5, -10.0, 4.0]), config=strict), 3)
+    assert turns == pytest.approx([0.5, -10.0, 2.0])  # only the smaller reversal counts
 
 
 def test_a_persistent_proposal_keeps_or_regains_the_full_gain() -> None:

@@ -9,8 +9,9 @@ step-to-step turn is the zig-zag); `summarize` groups them by their own keys int
 Variants (`VARIANTS`): the default policy alone (controller "policy-raw"), the classical
 controller (unchanged gains), the projection controller, `SteadyDirection` around the policy
 with each of its parts alone and together (together, with the mirror-averaged action:
-controller "policy"; and as stop 17 shipped it), and around the
-projection controller (the wrapper is not specific to the policy); and two rejected
+controller "policy"; and as stop 17 shipped it, without the mirror average), with one
+rejected overshoot test, and around the projection controller (the wrapper is not specific
+to the policy); and two rejected
 candidates kept for their numbers: a curvature feed-forward estimated from d's own recent
 turns, and two policy sub-steps per control step.
 """
@@ -152,14 +153,13 @@ _OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_fee
 #: label -> controller factory. "default" is the default policy alone (controller "policy-raw"),
 #: "steady" the full wrapper around it with the mirror-averaged action (controller "policy",
 #: the library's default); "steady: stop 17" is that controller as stop 17 shipped it (no
-#: mirror, any reversal counts as an overshoot), and the two after it undo one change each.
+#: mirror average), "steady: strict reversal" a rejected overshoot test (SteadyConfig).
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
     "steady": _named("policy"),  # mirrored, inside SteadyDirection: controller "policy"
-    "steady: stop 17": _steady(SteadyConfig(strict_reversal=False), mirror=False),
-    "steady: no mirror": _steady(SteadyConfig(), mirror=False),
-    "steady: any reversal": _steady(SteadyConfig(strict_reversal=False)),
+    "steady: stop 17": _steady(SteadyConfig(), mirror=False),  # without the mirror average
+    "steady: strict reversal": _steady(SteadyConfig(strict_reversal=True)),  # rejected
     "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
     "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
     "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),
