@@ -164,15 +164,15 @@ class DirectionUpdater:
             raise InvalidInputError("direction: must be a non-zero vector")
         d = d / norm_d
         f_hat = normalize_force(f, thr)
+        force_norm = float(np.linalg.norm(f))
         current = np.concatenate([f_hat, d])
         if p.observation == "history":
             obs = np.concatenate([current, self._previous])
             self._previous = current
         elif p.observation in MAGNITUDE_OBSERVATIONS:
-            norm = float(np.linalg.norm(f))
             ratio = 0.0
             if step_force is not None and np.any(f_hat):
-                ratio = min(norm / float(step_force), MAGNITUDE_CLIP)
+                ratio = min(force_norm / float(step_force), MAGNITUDE_CLIP)
             extra = (
                 [ratio] if p.observation == "magnitude" else [ratio, float(step_force is not None)]
             )
@@ -181,7 +181,7 @@ class DirectionUpdater:
             obs = current
         if not np.any(f_hat):
             return d
-        blocked = step_force is None or float(np.linalg.norm(f)) >= step_force
+        blocked = step_force is None or force_norm >= step_force
         # the network's action as it is (the paper's rule) without n, or for a blocked step
         a = (
             p.act_batch(obs[None, :])[0]

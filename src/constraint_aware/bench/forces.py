@@ -11,9 +11,8 @@ controller (unchanged gains), the projection controller, `SteadyDirection` aroun
 with each of its parts alone and together (together, with the mirror-averaged action:
 controller "policy"; and as stop 17 shipped it, without the mirror average), with one
 rejected overshoot test, and around the projection controller (the wrapper is not specific
-to the policy); and two rejected
-candidates kept for their numbers: a curvature feed-forward estimated from d's own recent
-turns, and two policy sub-steps per control step.
+to the policy); and two rejected candidates kept for their numbers: a curvature
+feed-forward estimated from d's own recent turns, and two policy sub-steps per control step.
 """
 
 from __future__ import annotations
@@ -454,7 +453,7 @@ def probe_turns(
             step_force=step_force,
             workplane_normal=normal if mirror else None,
         )
-        return math.degrees(math.atan2(float(nxt[1]), float(nxt[0])))
+        return _signed_deg(d, nxt, normal)
 
     out = []
     for along in PROBE_ALONG_N:

@@ -166,8 +166,8 @@ def controller_geometry(
 ) -> tuple[FloatArray, float | None]:
     """What a direction controller is given besides the force: the workplane normal (3,),
     oriented from the hinge on revolute joints so that moving along d0 (3,) turns positively
-    about it (the classical controller and `steady` turn about this axis), and the rotation
-    rate w_d = v_d / r [rad/s] on revolute joints with a known radius (else None)."""
+    about it (the classical controller and controller "policy" turn about this axis), and the
+    rotation rate w_d = v_d / r [rad/s] on revolute joints with a known radius (else None)."""
     assert cfg.workplane_normal is not None
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:

@@ -410,12 +410,13 @@ class JacoSim(Embodiment):
         wrench = self._k * err - self._damp_gain * np.sqrt(lam_diag) * vel_err
         tau = j_arm.T @ (wrench - lam_tau0) + tau0
         bias = d.qfrc_bias[dofs]
-        room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
+        motor_room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)  # after gravity
+        room = motor_room
         if self._friction is not None:
             room = np.maximum(room - self._friction, 1e-3)  # what the feed-forward below adds
         # at the motors' limits the rotation yields first: a large orientation error (the
-        # small wrist motors reach their 6.8 N m at 13 deg x 30 N m/rad) must not starve the
-        # force that holds the tool point on its path
+        # small wrist motors' 6.8 N m) must not starve the force that holds the tool point on
+        # its path
         rotation = j_arm[3:].T @ wrench[3:]
         excess = np.abs(tau) / room
         if float(np.max(excess)) > 1.0:
@@ -428,14 +429,12 @@ class JacoSim(Embodiment):
                     share = (room - np.sign(rotation) * translation) / np.abs(rotation)
                 tau = translation + min(1.0, float(np.min(share))) * rotation
         if self._friction is not None:
-            qvel = d.qvel[dofs]
             moving = np.minimum(np.abs(qvel) / self.osc.friction_velocity_scale, 1.0)
             sticking = np.tanh(tau / self.osc.friction_torque_scale)
             tau += self._friction * (moving * np.sign(qvel) + (1.0 - moving) * sticking)
         # at a motor's limit, scale the whole task torque down rather than clip joints one by
         # one: clipping would turn the Cartesian force away from the commanded direction
-        room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)
-        excess_all = float(np.max(np.abs(tau) / room))
+        excess_all = float(np.max(np.abs(tau) / motor_room))
         if excess_all > 1.0:
             tau /= excess_all
         if self._rotor_comp is not None:
