@@ -7,8 +7,10 @@ of door and drawer (default, classical, steady; the paper's offset and suite see
 transient vs steady force, the steady lag and zig-zag against the path's turn delta/r); the
 20-seed randomized suite and the paper's offsets for every variant, the paper's offsets over
 10 sensor-noise seeds for default, classical and steady; the resistance map for default,
-classical, steady and steady without the known rate. Writes forces.json (typed results) and
-forces.md (tables rendered from the JSON). One process.
+classical, steady and steady without the known rate; where the start gap to the classical
+controller comes from (the cells where steady is above it: the ground-truth references and
+the settled hand). Writes forces.json (typed results) and forces.md (tables rendered from the
+JSON). One process.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import os
 import time
 from pathlib import Path
@@ -28,6 +31,9 @@ from constraint_aware.bench.analysis import (
     suite_conditions,
 )
 from constraint_aware.bench.forces import (
+    REFERENCES,
+    SETTLED_PERIOD,
+    SETTLED_SUFFIX,
     STEADY_FROM,
     TRANSIENT_STEPS,
     VARIANTS,
@@ -39,17 +45,78 @@ from constraint_aware.bench.forces import (
     summary_from_dict,
     table_lines,
 )
+from constraint_aware.control.simulate import executor_config
 from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.sim.hand import HandConfig
+from constraint_aware.sim.tasks import task_config
 
 DIAGNOSED = ("default", "classical", "steady", "steady: stop 17")
 MAP_VARIANTS = ("default", "classical", "steady", "steady: no known rate")
 MAIN_VARIANTS = ("default", "classical", "steady", "steady: stop 17")
+#: the gap study: the library's controller and the classical one, the references, and both
+#: controllers with the settled hand
+GAP_VARIANTS = ("steady", "classical", *REFERENCES)
+GAP_SETTLED = ("steady", "classical")
+GAP_TASKS = ("door-opening", "drawer-opening")
+#: the grasp check: the hook hand's finger servo stiffness times this
+FINGER_STIFFNESS_FACTOR = 10.0
 
 
 def _runs(
-    conds: list[tuple[Condition, int]], variants: tuple[str, ...], policy: ConstraintAwarePolicy
+    conds: list[tuple[Condition, int]],
+    variants: tuple[str, ...],
+    policy: ConstraintAwarePolicy,
+    settled: bool = False,
 ) -> list[RunDiagnosis]:
-    return [run_variant(c, v, s, policy) for c, s in conds for v in variants]
+    return [run_variant(c, v, s, policy, settled=settled) for c, s in conds for v in variants]
+
+
+def _gap_lines(cells: list[VariantSummary]) -> list[str]:
+    """One row per (set, task), a column per label: peak / mean / start (steps < 5) [N]."""
+    labels = [*GAP_VARIANTS, *(v + SETTLED_SUFFIX for v in GAP_SETTLED)]
+    lines = [
+        "| set | task | " + " | ".join(labels) + " |",
+        "|---|---|" + "---|" * len(labels),
+    ]
+    for axis in sorted({c.axis for c in cells}):
+        for task in sorted({c.task for c in cells if c.axis == axis}):
+            row = {c.variant: c for c in cells if c.axis == axis and c.task == task}
+            lines.append(
+                f"| {axis} | {task} | "
+                + " | ".join(
+                    f"{row[v].median_peak_force_N:.2f} / {row[v].mean_force_N:.3f} / "
+                    f"{row[v].transient_mean_force_N:.2f}"
+                    if v in row
+                    else ""
+                    for v in labels
+                )
+                + " |"
+            )
+    shown = ["steady", "classical", *(v + SETTLED_SUFFIX for v in GAP_SETTLED)]
+    lines += [
+        "",
+        "Their main corrections (medians): turn / error, reading / quasi-static, turn per N "
+        "across [deg/N].",
+        "",
+        "| set | task | " + " | ".join(shown) + " |",
+        "|---|---|" + "---|" * len(shown),
+    ]
+    for axis in sorted({c.axis for c in cells}):
+        for task in sorted({c.task for c in cells if c.axis == axis}):
+            row = {c.variant: c for c in cells if c.axis == axis and c.task == task}
+            lines.append(
+                f"| {axis} | {task} | "
+                + " | ".join(
+                    f"{row[v].median_correction_turn_share:.2f} / "
+                    f"{row[v].median_correction_reading_share:.2f} / "
+                    f"{row[v].median_correction_turn_per_N:.2f}"
+                    if v in row
+                    else ""
+                    for v in shown
+                )
+                + " |"
+            )
+    return lines
 
 
 def render(data: dict[str, Any]) -> list[str]:
@@ -113,8 +180,9 @@ def render(data: dict[str, Any]) -> list[str]:
         "relieves the arm's across deflection), and the reading's |F| across d over the "
         "k delta sin(error) of a settled, rigidly guided hand.",
         "",
-        "| set | task | variant | error deg | turn / error | reading / quasi-static |",
-        "|---|---|---|---|---|---|",
+        "| set | task | variant | error deg | turn / error | reading / quasi-static | "
+        "turn per N across [deg/N] |",
+        "|---|---|---|---|---|---|---|",
     ]
     for key in ("suite", "paper_offsets_noise_seeds"):
         for c in cells(key):
@@ -122,8 +190,27 @@ def render(data: dict[str, Any]) -> list[str]:
                 lines.append(
                     f"| {key} | {c.task} | {c.variant} | {c.median_correction_error_deg:.1f} | "
                     f"{c.median_correction_turn_share:.2f} | "
-                    f"{c.median_correction_reading_share:.2f} |"
+                    f"{c.median_correction_reading_share:.2f} | "
+                    f"{c.median_correction_turn_per_N:.2f} |"
                 )
+    lines += [
+        "",
+        "The quasi-static model's turn per newton across d is 1 / (k delta) = "
+        f"{180 / math.pi / data['step_force_N']:.2f} deg/N at the hook hand's "
+        f"k delta = {data['step_force_N']:g} N.",
+        "",
+        "## Where the start gap comes from (door and drawer; cells: median peak / mean / "
+        "start mean |F| [N])",
+        "",
+        "`ground truth` turns d onto the simulator's admissible direction from the first "
+        "reading above the dead band on (x0.85, x1.25: short of it, past it); its hand turns as "
+        "`steady`'s. `settled hand`: the same 1 cm steps every "
+        f"{data['settled_period_s']:g} s instead of 0.1 s, so the hand is at rest at each "
+        "reading (classical: gamma_t scaled to the same adaptation per step). `fingers x10`: "
+        "the hook's finger servos 10 times stiffer (a different grasp, same object).",
+        "",
+        *_gap_lines(cells("gap")),
+    ]
     variants = list(VARIANTS)
     lines += ["", "## Randomized suite", "", *table_lines(cells("suite"), variants)]
     lines += ["", "## The paper's offsets", "", *table_lines(cells("paper_offsets"), variants)]
@@ -159,6 +246,8 @@ def main() -> None:
     args = parser.parse_args()
     start = time.perf_counter()
     policy = ConstraintAwarePolicy.load()
+    hook = task_config("drawer-opening")  # the hook hand's k delta, for the per-N turns
+    step_force = hook.hand.translational_stiffness * executor_config(hook).step_length
     probe = probe_turns(policy)
 
     diag_conds = [
@@ -181,6 +270,37 @@ def main() -> None:
     map_runs = _runs(
         [(c, s) for c in resistance_map() for s in range(args.map_seeds)], MAP_VARIANTS, policy
     )
+    # the start gap: the drawer's suite and the paper's offsets of door and drawer over
+    # sensor-noise seeds, the cells where steady stayed above classical
+    gap_conds = [
+        (dataclasses.replace(c, axis="suite"), s)
+        for c, s in suite_conditions(args.seeds)
+        if c.task in GAP_TASKS
+    ] + [
+        (dataclasses.replace(c, axis="paper offsets"), s)
+        for c in paper_offset_conditions()
+        if c.task in GAP_TASKS
+        for s in range(args.noise_seeds)
+    ]
+    # the same drawer suite with a stiffer grasp: the hook's fingers 10x stiffer
+    stiff = FINGER_STIFFNESS_FACTOR * HandConfig().finger_stiffness
+    stiff_conds = [
+        (
+            dataclasses.replace(
+                c,
+                axis=f"suite, fingers x{FINGER_STIFFNESS_FACTOR:g}",
+                overrides=(*c.overrides, ("hand__finger_stiffness", stiff)),
+            ),
+            s,
+        )
+        for c, s in suite_conditions(args.seeds)
+        if c.task == "drawer-opening"
+    ]
+    gap_runs = (
+        _runs(gap_conds, GAP_VARIANTS, policy)
+        + _runs(gap_conds, GAP_SETTLED, policy, settled=True)
+        + _runs(stiff_conds, GAP_SETTLED, policy)
+    )
     data: dict[str, Any] = {
         "policy": policy.name,
         "wall_time_s": time.perf_counter() - start,
@@ -198,6 +318,9 @@ def main() -> None:
             dataclasses.asdict(c) for c in summarize(noise_runs, aggregate_levels=True)
         ],
         "resistance": [dataclasses.asdict(c) for c in summarize(map_runs)],
+        "settled_period_s": SETTLED_PERIOD,
+        "step_force_N": step_force,
+        "gap": [dataclasses.asdict(c) for c in summarize(gap_runs, aggregate_levels=True)],
     }
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)

@@ -12,7 +12,10 @@ from constraint_aware.bench.analysis import Condition
 from constraint_aware.bench.forces import (
     PROBE_ACROSS_N,
     PROBE_ALONG_N,
+    REFERENCES,
+    SETTLED_SUFFIX,
     VARIANTS,
+    GroundTruthDirection,
     RunDiagnosis,
     probe_turns,
     run_variant,
@@ -20,6 +23,8 @@ from constraint_aware.bench.forces import (
     summary_from_dict,
     table_lines,
 )
+from constraint_aware.control.controllers import ControlInput, FixedDirection
+from constraint_aware.errors import UnknownNameError
 from constraint_aware.policy import ConstraintAwarePolicy
 
 DRAWER = Condition("test", 1.0, "drawer-opening", 30.0)
@@ -102,10 +107,54 @@ def test_the_main_correction_is_read_against_ground_truth() -> None:
         )
         for i, (a, f) in enumerate(zip(angles, forces, strict=True))
     ]
-    error, turn, share = _main_correction(steps, normal, k_delta)
+    error, turn, share, across_n = _main_correction(steps, normal, k_delta)
     assert error == pytest.approx(10.0)
     assert turn == pytest.approx(12.0)
     assert share == pytest.approx(0.5)
+    assert across_n == pytest.approx(across)
     away = [dataclasses.replace(s, direction=at(-a)) for s, a in zip(steps, angles, strict=True)]
     assert _main_correction(away, normal, k_delta)[1] == pytest.approx(12.0)  # sign: toward truth
     assert math.isnan(_main_correction(steps, normal, None)[2])  # no k delta, no share
+
+
+def _input(force: list[float], direction: list[float]) -> ControlInput:
+    return ControlInput(
+        np.array(force), np.zeros(3), np.array(direction), 0.1, 0.4, np.array([0.0, 0.0, 1.0])
+    )
+
+
+@pytest.mark.parametrize("gain", [1.0, 0.85, 1.25])
+def test_the_ground_truth_reference_keeps_d0_until_engaged_then_turns_by_its_gain(
+    gain: float,
+) -> None:
+    truth = np.array([1.0, 0.0, 0.0])
+    ref = GroundTruthDirection(lambda: truth, FixedDirection(), gain)
+    d0 = [math.cos(math.radians(20.0)), math.sin(math.radians(20.0)), 0.0]
+    ref.reset(np.array(d0))
+    assert np.allclose(ref.next_direction(_input([0.0, 0.3, 0.0], d0)), d0)  # in the band
+    d1 = ref.next_direction(_input([0.0, -2.0, 0.0], d0))  # engaged
+    assert math.degrees(math.atan2(d1[1], d1[0])) == pytest.approx(20.0 * (1.0 - gain))
+    # once engaged it stays engaged, whatever the next reading
+    d2 = ref.next_direction(_input([0.0, 0.0, 0.0], list(d1)))
+    assert math.degrees(math.atan2(d2[1], d2[0])) == pytest.approx(20.0 * (1.0 - gain) ** 2)
+
+
+def test_the_settled_hand_and_the_references_run_and_are_labelled() -> None:
+    settled = run_variant(DRAWER, "steady", 0, settled=True)
+    assert settled.variant == "steady" + SETTLED_SUFFIX and settled.success
+    normal = run_variant(DRAWER, "steady", 0)
+    # at rest before each reading the hand's damping force is gone: the steady force drops
+    assert settled.steady_mean_force_N < normal.steady_mean_force_N
+    truth = run_variant(DRAWER, "ground truth", 0)
+    assert truth.success and truth.peak_force_N < normal.peak_force_N
+    assert [c.variant for c in summarize([settled, truth, normal])] == [
+        "steady",
+        "ground truth",
+        "steady" + SETTLED_SUFFIX,
+    ]
+    assert set(REFERENCES) >= {"ground truth"}
+
+
+def test_an_unknown_variant_names_the_valid_ones() -> None:
+    with pytest.raises(UnknownNameError, match="ground truth"):
+        run_variant(DRAWER, "oracle", 0)

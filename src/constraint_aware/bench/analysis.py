@@ -116,9 +116,12 @@ class PreparedRun:
     rotation_rate: float | None
 
 
-def prepare_condition(cond: Condition, spec: RunSpec, threshold: float) -> PreparedRun:
+def prepare_condition(
+    cond: Condition, spec: RunSpec, threshold: float, control_period: float | None = None
+) -> PreparedRun:
     """The shared set-up of one policy-section run (and of the force study's): the task from
-    `spec`, the preload robot when `cond.preload_N` > 0, the dead band `threshold` [N]."""
+    `spec`, the preload robot when `cond.preload_N` > 0, the dead band `threshold` [N];
+    control_period [s]: the robot's period when not None (the force study's settled hand)."""
     task = build_task(spec)
     rng = np.random.default_rng(spec.seed + 7919)
     sensor_noise = spec.sensor_noise
@@ -126,6 +129,8 @@ def prepare_condition(cond: Condition, spec: RunSpec, threshold: float) -> Prepa
         sim: NoisySensorSim = PreloadSim(task, rng, sensor_noise, preload=np.zeros(3))
     else:
         sim = NoisySensorSim(task, rng, sensor_noise)
+    if control_period is not None:
+        sim.control_period_s = control_period  # validated: whole simulation substeps
     sim.reset()
     cfg = dataclasses.replace(executor_config(task), threshold=threshold)
     assert cfg.workplane_normal is not None

@@ -13,6 +13,12 @@ controller "policy"; and as stop 17 shipped it, without the mirror average), wit
 rejected overshoot test, and around the projection controller (the wrapper is not specific
 to the policy); and two rejected candidates kept for their numbers: a curvature
 feed-forward estimated from d's own recent turns, and two policy sub-steps per control step.
+
+References (`REFERENCES`), which read the simulator's admissible direction and so are not
+controllers a robot can run: d turned onto it (or short of it, or past it) from the first
+reading on. With `settled=True` any label runs with the hand at rest before each reading
+(`SETTLED_PERIOD`). Both locate where a force gap comes from: the estimate of the path, the
+size of the turn, or the hand's motion between readings.
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware import deadband
 from constraint_aware.bench.analysis import CellKey, Condition, group_cells, prepare_condition
+from constraint_aware.control.classical import ClassicalGains
 from constraint_aware.control.controllers import (
     HAND_SMOOTHING,
     ControlInput,
@@ -41,8 +48,10 @@ from constraint_aware.control.controllers import (
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord, StepRecord
 from constraint_aware.control.simulate import RunSpec
+from constraint_aware.errors import UnknownNameError
 from constraint_aware.geometry import FloatArray, turn_vector, unit
 from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
 
 #: Steps counted as the start transient (the initial offset's correction) ...
 TRANSIENT_STEPS = 5
@@ -55,6 +64,56 @@ CORRECTION_MIN_OFFSET_DEG = 2.0
 #: A variant builds its controller from (policy, rotation rate [rad/s] or None, oriented
 #: workplane normal (3,)).
 ControllerFactory = Callable[[ConstraintAwarePolicy, float | None, FloatArray], DirectionController]
+
+#: References, not controllers a robot can run (they read the simulator's admissible
+#: direction): label -> the share of the error d turns by each step once a reading is above
+#: the dead band (1: exactly onto the path). They bound what a better estimate of the path
+#: could give, and whether turning past it or short of it costs force.
+REFERENCES: dict[str, float] = {
+    "ground truth": 1.0,
+    "ground truth x0.85": 0.85,
+    "ground truth x1.25": 1.25,
+}
+#: [s] the settled-hand check's control period: about 4 of the hook hand's 0.076 s tracking
+#: time constants, so the hand has come to rest before each reading (1 - e^-4 = 98 %).
+SETTLED_PERIOD = 0.3
+#: appended to a variant's label when it ran with the settled hand
+SETTLED_SUFFIX = ", settled hand"
+
+
+class GroundTruthDirection:
+    """A reference (`REFERENCES`): d0 until the first reading above the dead band, then each
+    step d turned toward the simulator's admissible direction by `gain` times the error. The
+    hand rotation and step length are those of `hand` (controller "policy", run alongside on
+    the same readings), so only d differs from it."""
+
+    def __init__(
+        self, truth: Callable[[], FloatArray], hand: DirectionController, gain: float
+    ) -> None:
+        self.truth = truth
+        self.hand = hand
+        self.gain = gain
+        self.name = hand.name
+        self.engaged = False
+
+    def reset(self, direction: FloatArray) -> None:
+        self.hand.reset(direction)
+        self.engaged = False
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        self.hand.next_direction(inp)
+        self.engaged = self.engaged or float(np.linalg.norm(inp.force)) > inp.threshold
+        d = np.asarray(inp.direction, dtype=float)
+        if not self.engaged:
+            return d
+        turn = turn_vector(d, unit(np.asarray(self.truth(), dtype=float)))
+        return np.asarray(unit(Rotation.from_rotvec(self.gain * turn).apply(d)))
+
+    def step_length(self, nominal: float) -> float:
+        return self.hand.step_length(nominal)
+
+    def hand_rotation(self) -> Rotation | None:
+        return self.hand.hand_rotation()
 
 
 def _steady(config: SteadyConfig, inner: str = "policy", mirror: bool = True) -> ControllerFactory:
@@ -198,6 +257,7 @@ class RunDiagnosis:
     correction_turn_deg: float  # the turn, signed: + toward the truth
     correction_reading_share: float  # that reading's |F| across d in the workplane over the
     # quasi-static k delta sin(error) of a settled, rigidly guided hand (nan without k delta)
+    correction_across_N: float  # that reading's |F| across d in the workplane
 
 
 def _signed_deg(a: FloatArray, b: FloatArray, normal: FloatArray) -> float:
@@ -206,10 +266,11 @@ def _signed_deg(a: FloatArray, b: FloatArray, normal: FloatArray) -> float:
 
 def _main_correction(
     steps: list[StepRecord], normal: FloatArray, step_force: float | None
-) -> tuple[float, float, float]:
-    """(error, signed turn, reading share) of the biggest turn d_i -> d_i+1 decided from the
-    readings of steps 1 .. TRANSIENT_STEPS - 1 (step 0 reads before any move)."""
-    best: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+) -> tuple[float, float, float, float]:
+    """(error, signed turn, reading share, across force) of the biggest turn d_i -> d_i+1
+    decided from the readings of steps 1 .. TRANSIENT_STEPS - 1 (step 0 reads before any
+    move)."""
+    best: tuple[float, float, float, float] = (math.nan, math.nan, math.nan, math.nan)
     size = 0.0
     for s, nxt in itertools.pairwise(steps[1 : TRANSIENT_STEPS + 1]):
         if s.admissible_direction is None:
@@ -224,7 +285,7 @@ def _main_correction(
         across = abs(float(np.asarray(s.force) @ np.cross(normal, d)))
         quasi_static = step_force * math.sin(math.radians(error)) if step_force else 0.0
         share = across / quasi_static if quasi_static > 0 else math.nan
-        best = (error, math.copysign(abs(turn), turn * to_truth), share)
+        best = (error, math.copysign(abs(turn), turn * to_truth), share, across)
     return best
 
 
@@ -256,7 +317,7 @@ def diagnose(
         return float(np.mean(v)) if v else math.nan
 
     slips = [s.slip_deg for s in steps if math.isfinite(s.slip_deg)]
-    error, turn, share = _main_correction(steps, normal, step_force)
+    error, turn, share, across_n = _main_correction(steps, normal, step_force)
     return RunDiagnosis(
         condition=condition,
         variant=variant,
@@ -279,6 +340,7 @@ def diagnose(
         correction_error_deg=error,
         correction_turn_deg=turn,
         correction_reading_share=share,
+        correction_across_N=across_n,
     )
 
 
@@ -288,25 +350,54 @@ def run_variant(
     seed: int,
     policy: ConstraintAwarePolicy | None = None,
     sensor_noise: float = 0.1,
+    settled: bool = False,
 ) -> RunDiagnosis:
-    """One closed-loop run of a `VARIANTS` label on `cond`, as bench.analysis.run_condition
-    runs the policy section (dead band derived from the noise, the preload robot when asked),
-    with the revolute workplane normal oriented from the hinge for every controller."""
+    """One closed-loop run of a `VARIANTS` or `REFERENCES` label on `cond`, as
+    bench.analysis.run_condition runs the policy section (dead band derived from the noise,
+    the preload robot when asked), with the revolute workplane normal oriented from the hinge
+    for every controller.
+
+    settled: the hook hand at the control period `SETTLED_PERIOD` instead of its 0.1 s, with
+    the same 1 cm steps, so that each reading is taken at rest; the label gets
+    `SETTLED_SUFFIX`. The classical controller's adaptation rate gamma_t is scaled by the
+    periods' ratio there, so that it adapts t^ by the same amount per step as tuned (its
+    force feedback sets only the direction of a capped step, which the period does not
+    change)."""
+    if variant not in VARIANTS and variant not in REFERENCES:
+        raise UnknownNameError("force-study variant", variant, [*VARIANTS, *REFERENCES])
     policy = policy or ConstraintAwarePolicy.load()
     spec = RunSpec(
         cond.task, "policy", cond.offset_deg, seed=seed, randomize=cond.randomize,
         sensor_noise=sensor_noise, overrides=cond.overrides,
     )  # fmt: skip
     threshold = deadband.threshold_from_noise(sensor_noise)
-    prep = prepare_condition(cond, spec, threshold)
+    prep = prepare_condition(cond, spec, threshold, SETTLED_PERIOD if settled else None)
     sim, cfg, normal, d0, rate = prep.sim, prep.config, prep.normal, prep.d0, prep.rotation_rate
     radius = cfg.rotation_radius if rate is not None else None
     path_turn = math.degrees(cfg.step_length / radius) if radius else 0.0
-    ctrl = VARIANTS[variant](policy, rate, normal)
+    ctrl: DirectionController
+    if variant in REFERENCES:
+        hand = make_controller("policy", policy, rate, normal)
+        ctrl = GroundTruthDirection(sim.admissible_direction, hand, REFERENCES[variant])
+    elif settled and variant == "classical":
+        gamma_t = ClassicalGains().gamma_t * CONTROL_PERIOD / SETTLED_PERIOD
+        ctrl = make_controller("classical", policy, rate, normal, {"gamma_t": gamma_t})
+    else:
+        ctrl = VARIANTS[variant](policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
     stiffness = getattr(sim, "translational_stiffness", None)
     step_force = None if stiffness is None else float(stiffness) * cfg.step_length
-    return diagnose(record, cond, variant, seed, normal, path_turn, step_force)
+    label = variant + SETTLED_SUFFIX if settled else variant
+    return diagnose(record, cond, label, seed, normal, path_turn, step_force)
+
+
+#: every label a run can carry, in the order tables list them
+LABELS = (
+    *VARIANTS,
+    *REFERENCES,
+    *(v + SETTLED_SUFFIX for v in VARIANTS),
+    *(v + SETTLED_SUFFIX for v in REFERENCES),
+)
 
 
 @dataclass(frozen=True)
@@ -335,6 +426,7 @@ class VariantSummary:
     median_correction_error_deg: float  # the error its reading saw
     median_correction_turn_share: float  # the turn toward the truth over that error
     median_correction_reading_share: float  # the reading's across force over k delta sin(error)
+    median_correction_turn_per_N: float  # [deg/N] the turn toward the truth over that force
 
 
 def _nanmean(values: Iterable[float]) -> float:
@@ -356,7 +448,7 @@ def summarize(runs: Iterable[RunDiagnosis], aggregate_levels: bool = False) -> l
         return (r.condition.axis, level, r.condition.task, r.variant)
 
     out = []
-    for cell, rows in group_cells(runs, cell_of, tuple(VARIANTS)):
+    for cell, rows in group_cells(runs, cell_of, LABELS):
         outcomes: dict[str, int] = {}
         for r in rows:
             outcomes[r.outcome] = outcomes.get(r.outcome, 0) + 1
@@ -386,6 +478,11 @@ def summarize(runs: Iterable[RunDiagnosis], aggregate_levels: bool = False) -> l
                     r.correction_turn_deg / r.correction_error_deg for r in big
                 ),
                 median_correction_reading_share=_nanmedian(r.correction_reading_share for r in big),
+                median_correction_turn_per_N=_nanmedian(
+                    r.correction_turn_deg / r.correction_across_N
+                    for r in big
+                    if r.correction_across_N > 0
+                ),
             )
         )
     return out
