@@ -116,6 +116,27 @@ def _gap_lines(cells: list[VariantSummary]) -> list[str]:
                 )
                 + " |"
             )
+    lines += [
+        "",
+        "The first reading (step 1, after the first move from rest), medians: F.d / |F| across d "
+        "[N]. A settled, rigidly guided hand would read k delta sin(offset) across.",
+        "",
+        "| set | task | " + " | ".join(shown) + " |",
+        "|---|---|" + "---|" * len(shown),
+    ]
+    for axis in sorted({c.axis for c in cells}):
+        for task in sorted({c.task for c in cells if c.axis == axis}):
+            row = {c.variant: c for c in cells if c.axis == axis and c.task == task}
+            lines.append(
+                f"| {axis} | {task} | "
+                + " | ".join(
+                    f"{row[v].median_first_along_N:.2f} / {row[v].median_first_across_N:.2f}"
+                    if v in row
+                    else ""
+                    for v in shown
+                )
+                + " |"
+            )
     return lines
 
 

@@ -116,6 +116,16 @@ def test_the_main_correction_is_read_against_ground_truth() -> None:
     assert _main_correction(away, normal, k_delta)[1] == pytest.approx(12.0)  # sign: toward truth
     assert math.isnan(_main_correction(steps, normal, None)[2])  # no k delta, no share
 
+    # the first reading, split along and across d: 1 N against the move, `across` across it
+    from constraint_aware.bench.forces import diagnose
+    from constraint_aware.control.record import RunRecord
+
+    record = RunRecord({}, [0.0] * 3, [0.0] * 3, steps=steps)
+    diag = diagnose(record, DRAWER, "steady", 0, normal, 0.0, k_delta)
+    assert diag.first_along_N == pytest.approx(-1.0)
+    assert diag.first_across_N == pytest.approx(across)
+    assert diag.correction_across_N == pytest.approx(across)
+
 
 def _input(force: list[float], direction: list[float]) -> ControlInput:
     return ControlInput(

@@ -258,6 +258,9 @@ class RunDiagnosis:
     correction_reading_share: float  # that reading's |F| across d in the workplane over the
     # quasi-static k delta sin(error) of a settled, rigidly guided hand (nan without k delta)
     correction_across_N: float  # that reading's |F| across d in the workplane
+    # The first reading after the first move (step 1: the object starts from rest)
+    first_along_N: float  # F.d: negative is resistance to the move
+    first_across_N: float  # |F| across d in the workplane
 
 
 def _signed_deg(a: FloatArray, b: FloatArray, normal: FloatArray) -> float:
@@ -318,6 +321,11 @@ def diagnose(
 
     slips = [s.slip_deg for s in steps if math.isfinite(s.slip_deg)]
     error, turn, share, across_n = _main_correction(steps, normal, step_force)
+    first_along, first_across = math.nan, math.nan
+    if len(steps) > 1:
+        d1, f1 = np.asarray(steps[1].direction), np.asarray(steps[1].force)
+        first_along = float(f1 @ d1)
+        first_across = abs(float(f1 @ np.cross(normal, d1)))
     return RunDiagnosis(
         condition=condition,
         variant=variant,
@@ -341,6 +349,8 @@ def diagnose(
         correction_turn_deg=turn,
         correction_reading_share=share,
         correction_across_N=across_n,
+        first_along_N=first_along,
+        first_across_N=first_across,
     )
 
 
@@ -427,6 +437,8 @@ class VariantSummary:
     median_correction_turn_share: float  # the turn toward the truth over that error
     median_correction_reading_share: float  # the reading's across force over k delta sin(error)
     median_correction_turn_per_N: float  # [deg/N] the turn toward the truth over that force
+    median_first_along_N: float  # the first reading's F.d (step 1, from rest)
+    median_first_across_N: float  # the first reading's |F| across d
 
 
 def _nanmean(values: Iterable[float]) -> float:
@@ -483,6 +495,8 @@ def summarize(runs: Iterable[RunDiagnosis], aggregate_levels: bool = False) -> l
                     for r in big
                     if r.correction_across_N > 0
                 ),
+                median_first_along_N=_nanmedian(r.first_along_N for r in rows),
+                median_first_across_N=_nanmedian(r.first_across_N for r in rows),
             )
         )
     return out
