@@ -21,6 +21,7 @@ import json
 import math
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -71,73 +72,55 @@ def _runs(
     return [run_variant(c, v, s, policy, settled=settled) for c, s in conds for v in variants]
 
 
-def _gap_lines(cells: list[VariantSummary]) -> list[str]:
-    """One row per (set, task), a column per label: peak / mean / start (steps < 5) [N]."""
-    labels = [*GAP_VARIANTS, *(v + SETTLED_SUFFIX for v in GAP_SETTLED)]
-    lines = [
-        "| set | task | " + " | ".join(labels) + " |",
-        "|---|---|" + "---|" * len(labels),
-    ]
+def _cell_table(
+    cells: list[VariantSummary], labels: list[str], cell: Callable[[VariantSummary], str]
+) -> list[str]:
+    """A markdown table: one row per (set, task), a column per label, `cell` per entry."""
+    lines = ["| set | task | " + " | ".join(labels) + " |", "|---|---|" + "---|" * len(labels)]
     for axis in sorted({c.axis for c in cells}):
         for task in sorted({c.task for c in cells if c.axis == axis}):
             row = {c.variant: c for c in cells if c.axis == axis and c.task == task}
-            lines.append(
-                f"| {axis} | {task} | "
-                + " | ".join(
-                    f"{row[v].median_peak_force_N:.2f} / {row[v].mean_force_N:.3f} / "
-                    f"{row[v].transient_mean_force_N:.2f}"
-                    if v in row
-                    else ""
-                    for v in labels
-                )
-                + " |"
-            )
+            entries = (cell(row[v]) if v in row else "" for v in labels)
+            lines.append(f"| {axis} | {task} | " + " | ".join(entries) + " |")
+    return lines
+
+
+def _gap_lines(cells: list[VariantSummary]) -> list[str]:
+    """The gap study's tables: forces per label (peak / mean / start, steps < 5 [N]); the
+    main corrections and the first readings of the two controllers."""
+    labels = [*GAP_VARIANTS, *(v + SETTLED_SUFFIX for v in GAP_SETTLED)]
     shown = ["steady", "classical", *(v + SETTLED_SUFFIX for v in GAP_SETTLED)]
-    lines += [
+    return [
+        *_cell_table(
+            cells,
+            labels,
+            lambda c: (
+                f"{c.median_peak_force_N:.2f} / {c.mean_force_N:.3f} / "
+                f"{c.transient_mean_force_N:.2f}"
+            ),
+        ),
         "",
         "Their main corrections (medians): turn / error, reading / quasi-static, turn per N "
         "across [deg/N].",
         "",
-        "| set | task | " + " | ".join(shown) + " |",
-        "|---|---|" + "---|" * len(shown),
-    ]
-    for axis in sorted({c.axis for c in cells}):
-        for task in sorted({c.task for c in cells if c.axis == axis}):
-            row = {c.variant: c for c in cells if c.axis == axis and c.task == task}
-            lines.append(
-                f"| {axis} | {task} | "
-                + " | ".join(
-                    f"{row[v].median_correction_turn_share:.2f} / "
-                    f"{row[v].median_correction_reading_share:.2f} / "
-                    f"{row[v].median_correction_turn_per_N:.2f}"
-                    if v in row
-                    else ""
-                    for v in shown
-                )
-                + " |"
-            )
-    lines += [
+        *_cell_table(
+            cells,
+            shown,
+            lambda c: (
+                f"{c.median_correction_turn_share:.2f} / "
+                f"{c.median_correction_reading_share:.2f} / {c.median_correction_turn_per_N:.2f}"
+            ),
+        ),
         "",
         "The first reading (step 1, after the first move from rest), medians: F.d / |F| across d "
         "[N]. A settled, rigidly guided hand would read k delta sin(offset) across.",
         "",
-        "| set | task | " + " | ".join(shown) + " |",
-        "|---|---|" + "---|" * len(shown),
+        *_cell_table(
+            cells,
+            shown,
+            lambda c: f"{c.median_first_along_N:.2f} / {c.median_first_across_N:.2f}",
+        ),
     ]
-    for axis in sorted({c.axis for c in cells}):
-        for task in sorted({c.task for c in cells if c.axis == axis}):
-            row = {c.variant: c for c in cells if c.axis == axis and c.task == task}
-            lines.append(
-                f"| {axis} | {task} | "
-                + " | ".join(
-                    f"{row[v].median_first_along_N:.2f} / {row[v].median_first_across_N:.2f}"
-                    if v in row
-                    else ""
-                    for v in shown
-                )
-                + " |"
-            )
-    return lines
 
 
 def render(data: dict[str, Any]) -> list[str]:
