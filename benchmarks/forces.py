@@ -89,7 +89,7 @@ def _gap_lines(cells: list[VariantSummary]) -> list[str]:
     """The gap study's tables: forces per label (peak / mean / start, steps < 5 [N]); the
     main corrections and the first readings of the two controllers."""
     labels = [*GAP_VARIANTS, *(v + SETTLED_SUFFIX for v in GAP_SETTLED)]
-    shown = ["steady", "classical", *(v + SETTLED_SUFFIX for v in GAP_SETTLED)]
+    shown = [*GAP_SETTLED, *(v + SETTLED_SUFFIX for v in GAP_SETTLED)]
     return [
         *_cell_table(
             cells,

@@ -267,6 +267,12 @@ def _signed_deg(a: FloatArray, b: FloatArray, normal: FloatArray) -> float:
     return math.degrees(math.atan2(float(np.cross(a, b) @ normal), float(a @ b)))
 
 
+def _split(step: StepRecord, normal: FloatArray) -> tuple[float, float]:
+    """(F.d, |F across d in the workplane|) [N] of a step's reading."""
+    d, f = np.asarray(step.direction), np.asarray(step.force)
+    return float(f @ d), abs(float(f @ np.cross(normal, d)))
+
+
 def _main_correction(
     steps: list[StepRecord], normal: FloatArray, step_force: float | None
 ) -> tuple[float, float, float, float]:
@@ -285,7 +291,7 @@ def _main_correction(
         size = abs(turn)
         to_truth = _signed_deg(d, truth, normal)
         error = abs(to_truth)
-        across = abs(float(np.asarray(s.force) @ np.cross(normal, d)))
+        across = _split(s, normal)[1]
         quasi_static = step_force * math.sin(math.radians(error)) if step_force else 0.0
         share = across / quasi_static if quasi_static > 0 else math.nan
         best = (error, math.copysign(abs(turn), turn * to_truth), share, across)
@@ -305,10 +311,9 @@ def diagnose(
     prev = None
     for s in steady:
         d = np.asarray(s.direction)
-        f = np.asarray(s.force)
-        across_dir = np.cross(normal, d)
-        along.append(-float(f @ d))
-        across.append(abs(float(f @ across_dir)))
+        f_along, f_across = _split(s, normal)
+        along.append(-f_along)
+        across.append(f_across)
         if s.admissible_direction is not None:
             lag.append(_signed_deg(np.asarray(s.admissible_direction), d, normal))
             err.append(abs(s.angle_deg))
@@ -321,11 +326,7 @@ def diagnose(
 
     slips = [s.slip_deg for s in steps if math.isfinite(s.slip_deg)]
     error, turn, share, across_n = _main_correction(steps, normal, step_force)
-    first_along, first_across = math.nan, math.nan
-    if len(steps) > 1:
-        d1, f1 = np.asarray(steps[1].direction), np.asarray(steps[1].force)
-        first_along = float(f1 @ d1)
-        first_across = abs(float(f1 @ np.cross(normal, d1)))
+    first_along, first_across = _split(steps[1], normal) if len(steps) > 1 else (math.nan,) * 2
     return RunDiagnosis(
         condition=condition,
         variant=variant,
