@@ -17,6 +17,7 @@ from constraint_aware.bench.forces import (
     VARIANTS,
     GroundTruthDirection,
     RunDiagnosis,
+    paired_differences,
     probe_turns,
     run_variant,
     summarize,
@@ -168,3 +169,26 @@ def test_the_settled_hand_and_the_references_run_and_are_labelled() -> None:
 def test_an_unknown_variant_names_the_valid_ones() -> None:
     with pytest.raises(UnknownNameError, match="ground truth"):
         run_variant(DRAWER, "oracle", 0)
+
+
+def test_paired_differences_pair_runs_by_condition_and_seed(runs: list[RunDiagnosis]) -> None:
+    """Ground truth: differences built by hand from the runs' means, pairs kept apart by seed
+    and offset, a lone run (no partner) left out, the result independent of the run order."""
+    steady, classical = runs[2], runs[1]
+    other = dataclasses.replace(DRAWER, offset_deg=-30.0)
+    synthetic = [
+        steady, classical,
+        dataclasses.replace(steady, seed=1, mean_force_N=1.0),
+        dataclasses.replace(classical, seed=1, mean_force_N=1.5),
+        dataclasses.replace(steady, condition=other, mean_force_N=2.0),
+        dataclasses.replace(classical, condition=other, mean_force_N=1.0),
+        dataclasses.replace(steady, seed=7),  # no classical run on seed 7: not a pair
+    ]  # fmt: skip
+    (cell,) = paired_differences(synthetic, "steady", "classical")
+    diffs = [steady.mean_force_N - classical.mean_force_N, -0.5, 1.0]
+    assert cell.n == 3 and cell.variant_lower == sum(d < 0 for d in diffs)
+    assert cell.mean_difference_N == pytest.approx(np.mean(diffs))
+    assert cell.median_difference_N == pytest.approx(np.median(diffs))
+    assert min(diffs) <= cell.ci_low_N <= cell.mean_difference_N <= cell.ci_high_N <= max(diffs)
+    assert paired_differences(list(reversed(synthetic)), "steady", "classical") == [cell]
+    assert paired_differences(synthetic, "steady", "ground truth") == []

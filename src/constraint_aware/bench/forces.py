@@ -508,6 +508,67 @@ def summary_from_dict(data: dict[str, object]) -> VariantSummary:
     return VariantSummary(**data)  # type: ignore[arg-type]
 
 
+#: bootstrap resamples of a paired difference's confidence interval
+BOOTSTRAP_RESAMPLES = 10_000
+
+
+@dataclass(frozen=True)
+class PairedDifference:
+    """One (axis, task) cell: `variant` minus `baseline`, run by run on the same condition and
+    seed, in each run's mean |F| [N]. ci_*: the 95 % bootstrap interval of the mean
+    difference (percentiles, `BOOTSTRAP_RESAMPLES` resamples of the pairs, a fixed seed)."""
+
+    axis: str
+    task: str
+    variant: str
+    baseline: str
+    n: int
+    mean_difference_N: float
+    median_difference_N: float
+    ci_low_N: float
+    ci_high_N: float
+    variant_lower: int  # pairs where the variant's run mean is below the baseline's
+
+
+def paired_differences(
+    runs: Iterable[RunDiagnosis], variant: str, baseline: str, seed: int = 0
+) -> list[PairedDifference]:
+    """Each (axis, task) cell's paired comparison of `variant` against `baseline` (runs
+    paired by condition and seed; levels aggregated), sorted by (axis, task)."""
+    by: dict[tuple[str, str], dict[tuple[float, float, int, str], dict[str, float]]] = {}
+    for r in runs:
+        if r.variant not in (variant, baseline):
+            continue
+        c = r.condition
+        pair = (c.level, c.offset_deg, r.seed, repr(c.overrides))
+        by.setdefault((c.axis, c.task), {}).setdefault(pair, {})[r.variant] = r.mean_force_N
+    rng = np.random.default_rng(seed)
+    out = []
+    for (axis, task), pairs in sorted(by.items()):
+        # sorted pairs: the interval does not depend on the order the runs came in
+        ordered = (pairs[k] for k in sorted(pairs))
+        diff = np.array([p[variant] - p[baseline] for p in ordered if len(p) == 2])
+        if diff.size == 0:
+            continue
+        means = diff[rng.integers(0, diff.size, (BOOTSTRAP_RESAMPLES, diff.size))].mean(axis=1)
+        low, high = np.percentile(means, [2.5, 97.5])
+        out.append(
+            PairedDifference(
+                axis=axis,
+                task=task,
+                variant=variant,
+                baseline=baseline,
+                n=int(diff.size),
+                mean_difference_N=float(diff.mean()),
+                median_difference_N=float(np.median(diff)),
+                ci_low_N=float(low),
+                ci_high_N=float(high),
+                variant_lower=int((diff < 0).sum()),
+            )
+        )
+    return out
+
+
 def table_lines(cells: list[VariantSummary], variants: Iterable[str]) -> list[str]:
     """A markdown table: one row per (axis, level, task), a column per variant with
     "successes/n, median peak |F|, mean |F|"."""
