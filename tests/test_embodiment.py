@@ -12,6 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import constraint_aware.control.executor as executor_module
+from constraint_aware.bench.sweep import suite_specs
 from constraint_aware.control.controllers import DirectionController
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.simulate import RunSpec, executor_config, run
@@ -205,6 +206,23 @@ def test_paper_tasks_with_the_policy_on_the_arm_and_every_executor_guard(task: s
     spec = RunSpec(task, robot="jaco", controller="policy", offset_deg=PAPER_OFFSETS[task])
     record, _ = run(spec)
     assert record.outcome == "success", record.reason
+
+
+#: Jaco plate suite runs (controller, seed) whose healthy start the sensor-convention
+#: self-check used to stop, when it also judged moves whose force was mostly the press along
+#: the workplane normal (on the arm that force swings by ~8 N with < 0.3 mm of deflection)
+PLATE_SELF_CHECK_SEEDS = (("policy", 1), ("policy", 19), ("classical", 0), ("classical", 14))
+
+
+def test_the_self_check_lets_healthy_plate_runs_on_the_arm_through() -> None:
+    specs = {
+        (s.controller, s.seed): s
+        for s in suite_specs(20, ("policy", "classical"), ("plate-sliding",))
+    }
+    for key in PLATE_SELF_CHECK_SEEDS:
+        record, _ = run(dataclasses.replace(specs[key], robot="jaco"))
+        assert record.outcome == "success", (key, record.reason)
+        assert any(n.startswith("self-check passed") for n in record.notes), key
 
 
 def test_robot_specs_and_variants() -> None:

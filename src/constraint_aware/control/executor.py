@@ -782,14 +782,26 @@ class Executor:
             )
         return why
 
+    @staticmethod
+    def _in_plane(st: _Run, v: FloatArray) -> FloatArray:
+        """v less its component along the workplane normal (v itself without a workplane)."""
+        if st.normal is None:
+            return v
+        return v - float(v @ st.normal) * st.normal
+
     def _self_check_verdict(self, st: _Run, force: FloatArray, pose: Pose) -> str:
         magnitude = float(np.linalg.norm(force))
-        if magnitude < max(st.threshold, SELF_CHECK_MIN_FORCE):
+        # a move counts only with an in-plane force and deflection of its own: the press force
+        # along the normal is not explained by the deflection on every arm (the Jaco's plate)
+        if float(np.linalg.norm(self._in_plane(st, force))) < max(
+            st.threshold, SELF_CHECK_MIN_FORCE
+        ):
             return ""
         st.check_along.append(float(force @ st.direction) / magnitude)
         deflection = self._deflection(st, pose)
         size = float(np.linalg.norm(deflection))
-        if size > self._min_check_deflection(st):
+        in_plane = float(np.linalg.norm(self._in_plane(st, deflection)))
+        if min(size, in_plane) > self._min_check_deflection(st):
             st.check_deflection.append(float(force @ deflection) / (magnitude * size))
             half = self._deflection(st, pose, CONFIRM_LAG_SHARE)
             half_size = max(float(np.linalg.norm(half)), 1e-12)
