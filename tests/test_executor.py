@@ -21,6 +21,7 @@ from constraint_aware.control.controllers import (
 )
 from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.record import RunRecord
+from constraint_aware.control.robot import reported_stiffness
 from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import MIN_THRESHOLD
 from constraint_aware.errors import InvalidInputError
@@ -562,3 +563,41 @@ def test_a_pose_glitch_is_not_acted_on() -> None:
         for a, b in zip(robot.commands, robot.commands[1:], strict=False)
     ]
     assert max(steps) <= 0.03
+
+
+class StepForceSeen(FixedDirection):
+    """Keeps d0 and remembers the step force k*delta the executor hands the controller."""
+
+    def __init__(self) -> None:
+        self.seen: list[float | None] = []
+
+    def next_direction(self, inp: ControlInput) -> np.ndarray:
+        self.seen.append(inp.step_force)
+        return inp.direction
+
+
+@pytest.mark.parametrize("report", [math.nan, math.inf, -2000.0, 0.0, "stiff"])
+def test_an_invalid_reported_stiffness_is_ignored_and_named(report: object) -> None:
+    @dataclass
+    class Reports(FakeGuide):
+        translational_stiffness: object = report
+
+    assert reported_stiffness(Reports()) == (None, f"ignored translational_stiffness {report!r}")
+    ctrl = StepForceSeen()
+    rec = Executor(Reports(), ctrl, ExecutorConfig(max_steps=3)).run(d0(0))
+    assert f"ignored translational_stiffness {report!r}" in rec.notes
+    assert ctrl.seen and all(s is None for s in ctrl.seen)
+
+
+def test_a_valid_reported_stiffness_gives_the_controller_k_delta() -> None:
+    @dataclass
+    class Reports(FakeGuide):
+        translational_stiffness: float = 2000.0
+
+    assert reported_stiffness(Reports()) == (2000.0, "")
+    assert reported_stiffness(FakeGuide()) == (None, "")  # reports none: nothing to name
+    ctrl = StepForceSeen()
+    cfg = ExecutorConfig(max_steps=3)
+    rec = Executor(Reports(), ctrl, cfg).run(d0(0))
+    assert not any("ignored" in n for n in rec.notes)
+    assert ctrl.seen and all(s == pytest.approx(2000.0 * cfg.step_length) for s in ctrl.seen)

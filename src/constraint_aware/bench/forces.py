@@ -47,6 +47,7 @@ from constraint_aware.control.controllers import (
 )
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord, StepRecord
+from constraint_aware.control.robot import reported_stiffness
 from constraint_aware.control.simulate import RunSpec
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.geometry import FloatArray, turn_vector, unit
@@ -396,8 +397,8 @@ def run_variant(
     else:
         ctrl = VARIANTS[variant](policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
-    stiffness = getattr(sim, "translational_stiffness", None)
-    step_force = None if stiffness is None else float(stiffness) * cfg.step_length
+    stiffness, _ = reported_stiffness(sim)  # as the executor takes it
+    step_force = None if stiffness is None else stiffness * cfg.step_length
     label = variant + SETTLED_SUFFIX if settled else variant
     return diagnose(record, cond, label, seed, normal, path_turn, step_force)
 

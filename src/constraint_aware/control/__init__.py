@@ -13,7 +13,7 @@ from constraint_aware.control.controllers import (
 )
 from constraint_aware.control.executor import Executor, ExecutorConfig, command_jump_bound
 from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord, StepRecord
-from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench
+from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench, reported_stiffness
 from constraint_aware.control.settings import Settings, parse_settings
 
 __all__ = [
@@ -35,4 +35,5 @@ __all__ = [
     "command_jump_bound",
     "make_controller",
     "parse_settings",
+    "reported_stiffness",
 ]

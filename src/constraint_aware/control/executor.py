@@ -42,7 +42,7 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.controllers import ControlInput, DirectionController, project_on_plane
 from constraint_aware.control.record import RunRecord, StepRecord
-from constraint_aware.control.robot import Robot, TaskMonitor
+from constraint_aware.control.robot import Robot, TaskMonitor, reported_stiffness
 from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import MIN_THRESHOLD, noise_std, threshold_from_noise
 from constraint_aware.errors import (
@@ -373,12 +373,9 @@ class Executor:
                     cfg.torque_alpha,
                     math.radians(cfg.torque_beta_deg),
                 )
-            stiffness = getattr(self.robot, "translational_stiffness", None)
-            if stiffness is not None:
-                stiffness = float(stiffness)
-                if not (math.isfinite(stiffness) and stiffness > 0):
-                    record.notes.append(f"ignored translational_stiffness {stiffness!r}")
-                    stiffness = None
+            stiffness, ignored = reported_stiffness(self.robot)
+            if ignored:
+                record.notes.append(ignored)
             tau = self._tracking_time_constant(record)
             if cfg.max_lead is not None:
                 max_lead = cfg.max_lead

@@ -8,12 +8,13 @@ records it when present and never needs it to act.
 
 from __future__ import annotations
 
+import math
 from typing import Protocol
 
 from constraint_aware.geometry import FloatArray
 from constraint_aware.spatial import Pose, Wrench
 
-__all__ = ["Pose", "Robot", "TaskMonitor", "Wrench"]
+__all__ = ["Pose", "Robot", "TaskMonitor", "Wrench", "reported_stiffness"]
 
 
 class Robot(Protocol):
@@ -118,3 +119,19 @@ class TaskMonitor(Protocol):
         ...
 
     def handle_position(self) -> FloatArray: ...
+
+
+def reported_stiffness(robot: object) -> tuple[float | None, str]:
+    """The robot's optional `translational_stiffness` [N/m] as the executor uses it: the value
+    if it is a finite number > 0, else None; with a note naming a report that was ignored
+    ("" when the robot reports none or a valid one)."""
+    raw = getattr(robot, "translational_stiffness", None)
+    if raw is None:
+        return None, ""
+    try:
+        stiffness = float(raw)
+    except (TypeError, ValueError):
+        return None, f"ignored translational_stiffness {raw!r}"
+    if not (math.isfinite(stiffness) and stiffness > 0):
+        return None, f"ignored translational_stiffness {raw!r}"
+    return stiffness, ""
