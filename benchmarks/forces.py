@@ -10,8 +10,9 @@ transient vs steady force, the steady lag and zig-zag against the path's turn de
 classical, steady and steady without the known rate; where the start gap to the classical
 controller comes from (the cells where steady is above it: the ground-truth references, the
 settled hand, a stiffer grasp, and door and drawer suite seeds held out from the classical
-controller's tuning, with run-by-run paired differences). Writes forces.json (typed results)
-and forces.md (tables rendered from the JSON). One process.
+controller's tuning, with run-by-run paired differences). Writes forces.json (typed results),
+forces.md (tables rendered from the JSON) and forces_gap.png (the run-by-run differences, drawn
+from the JSON). One process.
 """
 
 from __future__ import annotations
@@ -39,10 +40,11 @@ from constraint_aware.bench.forces import (
     STEADY_FROM,
     TRANSIENT_STEPS,
     VARIANTS,
-    PairedDifference,
     RunDiagnosis,
     VariantSummary,
     paired_differences,
+    paired_from_dict,
+    plot_paired_differences,
     probe_turns,
     run_variant,
     summarize,
@@ -62,6 +64,8 @@ MAIN_VARIANTS = ("default", "classical", "steady", "steady: stop 17")
 GAP_VARIANTS = ("steady", "classical", *REFERENCES)
 GAP_SETTLED = ("steady", "classical")
 GAP_TASKS = ("door-opening", "drawer-opening")
+#: the run-by-run figure, beside forces.md
+GAP_FIGURE = "forces_gap.png"
 #: the grasp check: the hook hand's finger servo stiffness times this
 FINGER_STIFFNESS_FACTOR = 10.0
 
@@ -228,8 +232,10 @@ def render(data: dict[str, Any]) -> list[str]:
             f"| {p.axis} | {p.task} | {p.variant} - {p.baseline} | {p.n} | "
             f"{p.mean_difference_N:+.3f} | {p.median_difference_N:+.3f} | "
             f"[{p.ci_low_N:+.3f}, {p.ci_high_N:+.3f}] | {p.variant_lower}/{p.n} |"
-            for p in (PairedDifference(**d) for d in data.get("gap_paired", []))
+            for p in (paired_from_dict(d) for d in data.get("gap_paired", []))
         ),
+        "",
+        f"![Run by run, steady minus classical]({GAP_FIGURE})",
     ]
     variants = list(VARIANTS)
     lines += ["", "## Randomized suite", "", *table_lines(cells("suite"), variants)]
@@ -365,6 +371,7 @@ def main() -> None:
     (out / "forces.json").write_text(json.dumps(data, indent=1) + "\n")
     again = json.loads((out / "forces.json").read_text())
     (out / "forces.md").write_text("\n".join(render(again)) + "\n")
+    plot_paired_differences([paired_from_dict(d) for d in again["gap_paired"]], out / GAP_FIGURE)
 
 
 if __name__ == "__main__":

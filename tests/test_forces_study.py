@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,8 +18,11 @@ from constraint_aware.bench.forces import (
     SETTLED_SUFFIX,
     VARIANTS,
     GroundTruthDirection,
+    PairedDifference,
     RunDiagnosis,
     paired_differences,
+    paired_from_dict,
+    plot_paired_differences,
     probe_turns,
     run_variant,
     summarize,
@@ -190,5 +195,17 @@ def test_paired_differences_pair_runs_by_condition_and_seed(runs: list[RunDiagno
     assert cell.mean_difference_N == pytest.approx(np.mean(diffs))
     assert cell.median_difference_N == pytest.approx(np.median(diffs))
     assert min(diffs) <= cell.ci_low_N <= cell.mean_difference_N <= cell.ci_high_N <= max(diffs)
+    assert sorted(cell.differences_N) == pytest.approx(sorted(diffs))
     assert paired_differences(list(reversed(synthetic)), "steady", "classical") == [cell]
     assert paired_differences(synthetic, "steady", "ground truth") == []
+    assert paired_from_dict(json.loads(json.dumps(dataclasses.asdict(cell)))) == cell
+
+
+def test_the_paired_figure_is_drawn_from_the_summaries(tmp_path: Path) -> None:
+    diffs = (0.05, 0.1, 0.15)
+    pairs = [
+        PairedDifference("suite", "drawer", "a", "b", 3, 0.1, 0.1, 0.05, 0.15, 0, diffs),
+        PairedDifference("suite", "door", "a", "b", 2, -0.1, -0.1, -0.2, 0.0, 2, (-0.2, 0.0)),
+    ]
+    path = plot_paired_differences(pairs, tmp_path / "gap.png")
+    assert path.is_file() and path.stat().st_size > 1000

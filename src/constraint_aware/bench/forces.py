@@ -28,6 +28,8 @@ import itertools
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -50,6 +52,7 @@ from constraint_aware.control.record import RunRecord, StepRecord
 from constraint_aware.control.robot import reported_stiffness
 from constraint_aware.control.simulate import RunSpec
 from constraint_aware.errors import UnknownNameError
+from constraint_aware.figio import new_figure, save_figure
 from constraint_aware.geometry import FloatArray, turn_vector, unit
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
@@ -529,6 +532,47 @@ class PairedDifference:
     ci_low_N: float
     ci_high_N: float
     variant_lower: int  # pairs where the variant's run mean is below the baseline's
+    differences_N: tuple[float, ...] = ()  # each pair's difference, in the pairs' sorted order
+
+
+def paired_from_dict(data: dict[str, Any]) -> PairedDifference:
+    """A `PairedDifference` back from its JSON form (dataclasses.asdict)."""
+    return PairedDifference(**{**data, "differences_N": tuple(data.get("differences_N", ()))})
+
+
+def plot_paired_differences(pairs: Iterable[PairedDifference], path: str | Path) -> Path:
+    """One row per cell: every pair's difference [N] (grey dots), the mean with its 95 %
+    interval (blue: below 0, red: above, purple: either), and zero, the line the issue's "at
+    or below" asks for. Returns the written path."""
+    pairs = list(pairs)
+    fig = new_figure(figsize=(9.0, 0.42 * len(pairs) + 1.4))
+    ax = fig.add_subplot(1, 1, 1)
+    jitter = np.random.default_rng(0)  # fixed: the same figure from the same results
+    for row, p in enumerate(pairs):
+        y = len(pairs) - 1 - row
+        diffs = np.asarray(p.differences_N, dtype=float)
+        ax.scatter(diffs, y + jitter.uniform(-0.15, 0.15, diffs.size), s=9, alpha=0.5, c="gray")
+        if p.ci_high_N < 0:
+            color = "tab:blue"
+        elif p.ci_low_N > 0:
+            color = "tab:red"
+        else:
+            color = "tab:purple"
+        xerr = [[p.mean_difference_N - p.ci_low_N], [p.ci_high_N - p.mean_difference_N]]
+        ax.errorbar(p.mean_difference_N, y, xerr=xerr, fmt="o", color=color, capsize=3)
+    ax.axvline(0.0, color="black", lw=0.8)
+    ax.set_yticks(range(len(pairs)))
+    labels = [
+        f"{p.axis}: {p.task}" + (SETTLED_SUFFIX if p.variant.endswith(SETTLED_SUFFIX) else "")
+        for p in reversed(pairs)
+    ]
+    ax.set_yticklabels(labels, fontsize=7)
+    names = sorted({(p.variant, p.baseline) for p in pairs if p.variant in VARIANTS})
+    names = names or sorted({(p.variant, p.baseline) for p in pairs})
+    title = "; ".join(f"{a} minus {b}" for a, b in names)
+    ax.set_title(f"Run by run, {title}: mean and 95 % interval", fontsize=9)
+    ax.set_xlabel("difference of the runs' mean |F| [N] (below 0: the first is lower)")
+    return save_figure(fig, path)
 
 
 def paired_differences(
@@ -565,6 +609,7 @@ def paired_differences(
                 ci_low_N=float(low),
                 ci_high_N=float(high),
                 variant_lower=int((diff < 0).sum()),
+                differences_N=tuple(float(x) for x in diff),
             )
         )
     return out
