@@ -12,9 +12,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import constraint_aware.control.executor as executor_module
+from constraint_aware.bench.faults import FaultyRobot
 from constraint_aware.bench.sweep import suite_specs
 from constraint_aware.control.controllers import DirectionController
-from constraint_aware.control.executor import Executor
+from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.simulate import RunSpec, executor_config, run
 from constraint_aware.errors import InvalidInputError, UnknownNameError
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -209,8 +210,8 @@ def test_paper_tasks_with_the_policy_on_the_arm_and_every_executor_guard(task: s
 
 
 #: Jaco plate suite runs (controller, seed) whose healthy start the sensor-convention
-#: self-check used to stop, when it also judged moves whose force was mostly the press along
-#: the workplane normal (on the arm that force swings by ~8 N with < 0.3 mm of deflection)
+#: self-check stopped until it judged the workplane's components only (along the normal the
+#: press force swings by ~8 N with < 0.3 mm of deflection)
 PLATE_SELF_CHECK_SEEDS = (("policy", 1), ("policy", 19), ("classical", 0), ("classical", 14))
 
 
@@ -222,7 +223,16 @@ def test_the_self_check_lets_healthy_plate_runs_on_the_arm_through() -> None:
     for key in PLATE_SELF_CHECK_SEEDS:
         record, _ = run(dataclasses.replace(specs[key], robot="jaco"))
         assert record.outcome == "success", (key, record.reason)
-        assert any(n.startswith("self-check passed") for n in record.notes), key
+        # few moves carry 2 N in the plane there: the check often ends inconclusive
+        assert any(n.startswith("self-check ") for n in record.notes), key
+
+
+@pytest.mark.parametrize("fault", ["flipped_sign", "rotated_90"])
+def test_the_self_check_still_stops_a_wrong_convention_on_the_arms_plate(fault: str) -> None:
+    hold = ExecutorConfig().offset_samples - 1
+    spec = RunSpec("plate-sliding", robot="jaco", controller="policy", offset_deg=-30.0, seed=1)
+    record, _ = run(spec, wrap=lambda sim: FaultyRobot(sim, fault, hold))
+    assert record.outcome in ("sensor_convention", "force_limit"), record.reason
 
 
 def test_robot_specs_and_variants() -> None:

@@ -601,3 +601,47 @@ def test_a_valid_reported_stiffness_gives_the_controller_k_delta() -> None:
     rec = Executor(Reports(), ctrl, cfg).run(d0(0))
     assert not any("ignored" in n for n in rec.notes)
     assert ctrl.seen and all(s == pytest.approx(2000.0 * cfg.step_length) for s in ctrl.seen)
+
+
+@dataclass
+class PressingGuide(FakeGuide):
+    """FakeGuide whose hand, once moving, also presses 12 N down on the workplane while the arm
+    sags 1 mm up along its normal: a force along the normal that the wrist spring does not
+    explain (on the Jaco's plate it swings by 8 N). In the plane it is the healthy FakeGuide:
+    judged in 3-D, F and the deflection point apart (cos about -0.2)."""
+
+    def read_wrench(self) -> Wrench:
+        w = super().read_wrench()
+        press = np.array([0.0, 0.0, -12.0]) if self.steps > HOLD else np.zeros(3)
+        return Wrench(w.force + press, w.torque)
+
+    def advance(self) -> None:
+        super().advance()
+        if self.steps > HOLD:
+            self.position = self.position + np.array([0.0, 0.0, 0.001])
+
+
+def test_the_self_check_judges_the_workplane_only() -> None:
+    cfg = ExecutorConfig(max_steps=10, workplane_normal=(0.0, 0.0, 1.0))
+    rec = Executor(PressingGuide(), FixedDirection(), cfg).run(d0(10))
+    assert rec.outcome == "timeout", rec.reason  # healthy in the plane: not stopped
+    assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
+
+    # the same reading with its sign flipped is still caught from its in-plane part
+    @dataclass
+    class FlippedPressing(PressingGuide):
+        def read_wrench(self) -> Wrench:
+            w = super().read_wrench()
+            return Wrench(-w.force, -w.torque)
+
+    rec = Executor(FlippedPressing(), FixedDirection(), cfg).run(d0(10))
+    assert rec.outcome == "sensor_convention", rec.outcome
+
+
+def test_too_few_judged_moves_leave_the_self_check_inconclusive() -> None:
+    # aligned with the guide: no force in the plane, so no move is judged, only the press
+    cfg = ExecutorConfig(max_steps=10, workplane_normal=(0.0, 0.0, 1.0))
+    rec = Executor(PressingGuide(), FixedDirection(), cfg).run(d0(0))
+    assert rec.outcome == "timeout", rec.reason
+    assert any(n.startswith("self-check inconclusive") for n in rec.notes), rec.notes
+    assert not any(n.startswith("self-check passed") for n in rec.notes)

@@ -209,3 +209,27 @@ def test_the_paired_figure_is_drawn_from_the_summaries(tmp_path: Path) -> None:
     ]
     path = plot_paired_differences(pairs, tmp_path / "gap.png")
     assert path.is_file() and path.stat().st_size > 1000
+
+
+def test_a_paired_cell_does_not_depend_on_the_other_cells(runs: list[RunDiagnosis]) -> None:
+    steady, classical = runs[2], runs[1]
+    drawer = [
+        steady, classical,
+        dataclasses.replace(steady, seed=1, mean_force_N=1.0),
+        dataclasses.replace(classical, seed=1, mean_force_N=1.4),
+        dataclasses.replace(steady, seed=2, mean_force_N=0.5),
+        dataclasses.replace(classical, seed=2, mean_force_N=0.6),
+    ]  # fmt: skip
+    door = dataclasses.replace(DRAWER, task="door-opening")
+    (alone,) = paired_differences(drawer, "steady", "classical")
+    both = paired_differences(drawer + [dataclasses.replace(r, condition=door) for r in drawer],
+                              "steady", "classical")  # fmt: skip
+    assert [c.task for c in both] == ["door-opening", "drawer-opening"] and both[1] == alone
+    # the whole condition pairs runs: a randomized twin of the condition is not a partner
+    twin = dataclasses.replace(classical, condition=dataclasses.replace(DRAWER, randomize=True))
+    assert paired_differences([steady, twin], "steady", "classical") == []
+    with pytest.raises(ValueError, match="two 'steady' runs"):
+        paired_differences([steady, steady, classical], "steady", "classical")
+    nan = dataclasses.replace(classical, seed=1, mean_force_N=math.nan)
+    (cell,) = paired_differences([*drawer[:3], nan], "steady", "classical")
+    assert cell.n == 1  # a non-finite pair is left out

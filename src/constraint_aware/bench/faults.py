@@ -33,6 +33,7 @@ from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.sim.embodiment import Embodiment
 from constraint_aware.sim.tasks import TASKS
 from constraint_aware.sim.world import ManipulationSim
 from constraint_aware.spatial import Pose, Wrench
@@ -84,7 +85,7 @@ class FaultyRobot:
 
     def __init__(
         self,
-        sim: ManipulationSim,
+        sim: Embodiment,
         fault: str,
         hold_periods: int,
         tracking_time_constant: float | None = None,
@@ -195,7 +196,7 @@ class FaultyRobot:
         if not self._frozen():
             self.sim.advance()
         self.periods += 1
-        self.true_forces.append(ManipulationSim.read_wrench(self.sim).force)
+        self.true_forces.append(Embodiment.read_wrench(self.sim).force)
 
     def hold(self) -> None:
         self.holds += 1

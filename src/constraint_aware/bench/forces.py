@@ -26,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+import zlib
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -578,23 +579,30 @@ def plot_paired_differences(pairs: Iterable[PairedDifference], path: str | Path)
 def paired_differences(
     runs: Iterable[RunDiagnosis], variant: str, baseline: str, seed: int = 0
 ) -> list[PairedDifference]:
-    """Each (axis, task) cell's paired comparison of `variant` against `baseline` (runs
-    paired by condition and seed; levels aggregated), sorted by (axis, task)."""
-    by: dict[tuple[str, str], dict[tuple[float, float, int, str], dict[str, float]]] = {}
+    """Each (axis, task) cell's paired comparison of `variant` against `baseline`, sorted by
+    (axis, task). Runs pair on their whole condition (levels, offsets, overrides, ...) and
+    seed; a run without a partner, or a pair with a non-finite mean, is left out. Each cell
+    resamples with its own generator, seeded from `seed` and the cell, so its interval depends
+    neither on the order of the runs nor on the other cells. Raises ValueError on two runs of
+    one label on the same condition and seed."""
+    by: dict[tuple[str, str], dict[str, dict[str, float]]] = {}
     for r in runs:
         if r.variant not in (variant, baseline):
             continue
         c = r.condition
-        pair = (c.level, c.offset_deg, r.seed, repr(c.overrides))
-        by.setdefault((c.axis, c.task), {}).setdefault(pair, {})[r.variant] = r.mean_force_N
-    rng = np.random.default_rng(seed)
+        pair = by.setdefault((c.axis, c.task), {}).setdefault(repr((c, r.seed)), {})
+        if r.variant in pair:
+            raise ValueError(f"two {r.variant!r} runs on {c} with seed {r.seed}")
+        pair[r.variant] = r.mean_force_N
     out = []
     for (axis, task), pairs in sorted(by.items()):
-        # sorted pairs: the interval does not depend on the order the runs came in
-        ordered = (pairs[k] for k in sorted(pairs))
+        ordered = (pairs[k] for k in sorted(pairs))  # not the order the runs came in
         diff = np.array([p[variant] - p[baseline] for p in ordered if len(p) == 2])
+        diff = diff[np.isfinite(diff)]
         if diff.size == 0:
             continue
+        cell = zlib.crc32(f"{axis}|{task}|{variant}|{baseline}".encode())
+        rng = np.random.default_rng([seed, cell])
         means = diff[rng.integers(0, diff.size, (BOOTSTRAP_RESAMPLES, diff.size))].mean(axis=1)
         low, high = np.percentile(means, [2.5, 97.5])
         out.append(
