@@ -308,6 +308,18 @@ def test_execute_on_another_robot_runs_that_embodiment(monkeypatch: pytest.Monke
     assert record.steps  # the executor drove the arm (how far it got is the guards' business)
 
 
+def test_the_drawer_demonstration_executes_on_the_arm() -> None:
+    """The demonstration's plane normal (the drawer's bar) points along -y: taken with its sign
+    it turned the object frame upside down and put the arm's base above the handle, out of
+    reach (CapError). A bar has no direction: the frame stays upright and the arm succeeds."""
+    from constraint_aware.lfo.execute import execute
+
+    skill = infer_skill(load(ROOT / "examples" / "drawer_demo.json"))
+    assert float(skill.workplane_normal[1]) < 0  # the sign that used to flip the frame
+    record, _ = execute(skill, robot="jaco")
+    assert record.outcome == "success", record.reason
+
+
 def test_execute_unknown_robot_names_the_valid_ones() -> None:
     from constraint_aware.errors import InvalidInputError, UnknownNameError
     from constraint_aware.lfo.execute import execute

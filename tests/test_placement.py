@@ -3,6 +3,7 @@ plausibility checks, the moved example demonstrations and the placement benchmar
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -66,6 +67,18 @@ def test_frames_are_right_handed_and_follow_the_object(
     elif obj.handle == "bar":
         np.testing.assert_allclose(normal, frame[:, 1])  # the plane across the bar
     ManipulationSim(task).reset()  # compiles (MuJoCo rejects left-handed frames) and grasps
+
+
+@pytest.mark.parametrize("bar", [(0.0, 1.0, 0.0), (0.0, -1.0, 0.0), (0.6, -0.8, 0.0)])
+def test_a_bar_has_no_direction_the_frame_stays_upright(bar: tuple[float, float, float]) -> None:
+    """+-handle_axis is one bar: the frame of a drawer's horizontal bar is the upright one
+    whichever sign the bar was given (a demonstration's plane normal comes with either)."""
+    obj = object_for("drawer", position=(0.5, 0.1, 0.9), axis=(1.0, 0.0, 0.0), handle_axis=bar)
+    frame = object_frame(obj)
+    flipped = object_frame(dataclasses.replace(obj, handle_axis=(-bar[0], -bar[1], -bar[2])))
+    np.testing.assert_allclose(frame, flipped, atol=1e-12)
+    np.testing.assert_allclose(frame[:, 2], (0.0, 0.0, 1.0), atol=1e-12)
+    assert _proper(frame)
 
 
 def test_presets_keep_their_geometry() -> None:

@@ -125,7 +125,8 @@ def object_frame(cfg: ObjectConfig) -> np.ndarray:
       sign or tilt: a left-hinged door (axis -z) gets up = -z, a lid (horizontal hinge) a
       horizontal up;
     - bar on a slide (drawer, window): side = the bar (`handle_axis`, else horizontal and
-      across the slide; for a vertical slide world y);
+      across the slide; for a vertical slide world y), signed so that up does not point
+      below the horizon;
     - plate, pole: up = world z (pressed from above; a vertical pole);
     - knob: up = the hinge axis signed upward (the hand presses the crank from above
       whichever way it turns).
@@ -143,6 +144,11 @@ def object_frame(cfg: ObjectConfig) -> np.ndarray:
         if np.linalg.norm(side) < 1e-6:
             raise InvalidInputError("handle_axis must not be parallel to the slide axis")
         side = unit(side)
+        if float(np.cross(out, side) @ z) < 0.0:
+            # a bar has no direction: +-handle_axis is the same bar. Sign it so that up is not
+            # below the horizon, as for the horizontal default (a demonstration's plane normal
+            # comes with either sign; taken as given it hung the hand upside down)
+            side = -side
         return np.stack([out, side, np.cross(out, side)], axis=1)
     else:
         up_ref = z
