@@ -791,8 +791,8 @@ class Executor:
             else:
                 st.record.notes.append(
                     f"self-check inconclusive: too few of the first {cfg.self_check_steps} "
-                    f"moves had an in-plane force of {max(st.threshold, SELF_CHECK_MIN_FORCE):.1f}"
-                    f" N or more ({SELF_CHECK_MIN_SAMPLES} needed): {counts}"
+                    f"moves had an in-plane force of {self._min_check_force(st):.1f} N or more "
+                    f"({SELF_CHECK_MIN_SAMPLES} needed): {counts}"
                 )
         return why
 
@@ -807,7 +807,7 @@ class Executor:
         # the workplane's components of F and of the deflection only (see SELF_CHECK_MIN_FORCE)
         force = self._in_plane(st, force)
         magnitude = float(np.linalg.norm(force))
-        if magnitude < max(st.threshold, SELF_CHECK_MIN_FORCE):
+        if magnitude < self._min_check_force(st):
             return ""
         st.check_along.append(float(force @ st.direction) / magnitude)
         deflection = self._in_plane(st, self._deflection(st, pose))
@@ -840,6 +840,12 @@ class Executor:
                     f"{len(st.check_along)} moves)"
                 )
         return ""
+
+    @staticmethod
+    def _min_check_force(st: _Run) -> float:
+        """[N] the smallest in-plane |F| of a move the self-check judges: the dead band, at
+        least SELF_CHECK_MIN_FORCE."""
+        return max(st.threshold, SELF_CHECK_MIN_FORCE)
 
     @staticmethod
     def _min_check_deflection(st: _Run) -> float:
