@@ -131,7 +131,7 @@ def reported_stiffness(robot: object) -> tuple[float | None, str]:
     try:
         stiffness = float(raw)
     except (TypeError, ValueError):
-        return None, f"ignored translational_stiffness {raw!r}"
-    if not (math.isfinite(stiffness) and stiffness > 0):
-        return None, f"ignored translational_stiffness {raw!r}"
-    return stiffness, ""
+        stiffness = math.nan  # not a number: ignored like a NaN
+    if math.isfinite(stiffness) and stiffness > 0:
+        return stiffness, ""
+    return None, f"ignored translational_stiffness {raw!r}"
