@@ -400,3 +400,17 @@ def test_view_without_display_is_a_clear_error() -> None:
     )  # fmt: skip
     assert out.returncode == 2
     assert "display" in out.stderr
+
+
+# --- cap check-sensor -------------------------------------------------------------------------
+def test_check_sensor_exit_codes_and_json(tmp_path: Path) -> None:
+    assert main(["check-sensor", "drawer-opening"]) == 0
+    out = tmp_path / "probe.json"
+    assert (
+        main(["check-sensor", "drawer-opening", "--fault", "flipped_sign", "--json", str(out)]) == 1
+    )
+    data = json.loads(out.read_text())
+    assert data["verdict"] == "flipped_sign" and data["meaning"]
+    assert len(data["pushes"]) == 8
+    assert main(["check-sensor", "drawer-opening", "--amplitude", "0.5"]) == 2  # named range
+    assert "--probe" in options_of("run")

@@ -235,6 +235,22 @@ def test_bad_config_is_rejected_with_valid_names() -> None:
         ExecutorConfig(constraint_type="revolute", torque_policy=True)
 
 
+def test_a_configured_stiffness_replaces_the_report_and_is_noted() -> None:
+    with pytest.raises(InvalidInputError, match=r"stiffness.*\(0, inf\) \[N/m\]"):
+        ExecutorConfig(stiffness=-5.0)
+    seen: list[float | None] = []
+
+    class Recording(FixedDirection):
+        def next_direction(self, inp: ControlInput) -> np.ndarray:
+            seen.append(inp.step_force)
+            return super().next_direction(inp)
+
+    cfg = ExecutorConfig(max_steps=3, stiffness=2500.0)
+    rec = Executor(Stiff(), Recording(), cfg).run(d0(0))
+    assert seen and all(f == pytest.approx(25.0) for f in seen)  # 2500 N/m x 1 cm
+    assert "stiffness 2500 N/m from the configuration (robot reports 2000 N/m)" in rec.notes
+
+
 def test_executor_module_never_imports_mujoco() -> None:
     code = (
         "import sys\n"

@@ -730,6 +730,86 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+# --- cap check-sensor -------------------------------------------------------------------------
+def _check_sensor_parser(p: argparse.ArgumentParser) -> None:
+    from constraint_aware.bench.faults import FAULTS
+    from constraint_aware.control.probe import ProbeConfig
+
+    p.add_argument("task", choices=_task_names(), help="the simulated task, grasped")
+    _add_robot(p, "to probe")
+    p.add_argument("--seed", type=int, default=0, help="the sensor noise's seed")
+    p.add_argument(
+        "--fault",
+        default="none",
+        choices=("none", *FAULTS),
+        help="a fault to inject between the probe and the robot (bench/faults.py)",
+    )
+    specs = add_dataclass_flags(p.add_argument_group("probe"), ProbeConfig)
+    p.add_argument("--json", metavar="PATH", help="the probe's result as JSON ('-' = stdout)")
+    p.set_defaults(func=cmd_check_sensor, probe_specs=specs)
+
+
+def cmd_check_sensor(args: argparse.Namespace) -> int:
+    from constraint_aware.bench.faults import FaultyRobot
+    from constraint_aware.control.probe import PROBE_VERDICTS, ProbeConfig
+    from constraint_aware.control.simulate import RunSpec, probe
+
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    spec = RunSpec(task=args.task, seed=args.seed, robot=args.robot)
+    chosen = collect(args, args.probe_specs)
+    config = ProbeConfig(**chosen) if chosen else None
+    wrap = None
+    if args.fault != "none":
+        fault = args.fault
+
+        def wrap(sim: Any) -> Any:
+            return FaultyRobot(sim, fault, 0)
+
+    try:
+        result, _sim = probe(spec, config, wrap)
+    except Exception as exc:
+        partial = getattr(exc, "probe_result", None)
+        if partial is None or not args.json:
+            raise
+        write_json(partial.to_dict(), args.json)
+        print_error(f"the probe raised {type(exc).__name__}: {exc}")
+        return EXIT_FAILED
+    out = human(args)
+    table = Table(title=f"{args.task} / {args.robot}: pushes of {result_amplitude(config)} mm")
+    for column in ("direction", "|dF| [N]", "cos(dF, stretch)", "arm [N/m]", "push [N/m]"):
+        table.add_column(column, justify="right")
+    for push in result.pushes:
+        df = math.hypot(*push.force_change)
+        table.add_row(
+            " ".join(f"{x:+.2f}" for x in push.direction),
+            f"{df:.2f}",
+            "-" if push.cos is None else f"{push.cos:+.2f}",
+            "-" if push.arm_stiffness is None else f"{push.arm_stiffness:.0f}",
+            f"{push.push_stiffness:.0f}",
+        )
+    out.print(table)
+    ok = result.verdict == "consistent"
+    out.print(
+        Text.assemble(
+            "verdict: ",
+            (result.verdict, "green" if ok else "red"),
+            f" ({result.reason}). {PROBE_VERDICTS[result.verdict]}",
+        ),
+        soft_wrap=True,
+    )
+    for note in result.notes:
+        out.print(Text(f"note: {note}"), soft_wrap=True)
+    if args.json:
+        write_json(result.to_dict(), args.json)
+    return EXIT_OK if ok else EXIT_FAILED
+
+
+def result_amplitude(config: Any) -> str:
+    from constraint_aware.control.probe import ProbeConfig
+
+    return f"{(config or ProbeConfig()).amplitude * 1000:g}"
+
+
 # --- parser -----------------------------------------------------------------------------------
 COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
     "bench": ("reproduce the paper's experiments as a report", _bench_parser),
@@ -738,6 +818,10 @@ COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
     "train": ("train the policy with PPO (needs the 'train' extra)", _train_parser),
     "eval": ("evaluate a policy beside the reference controllers", _eval_parser),
     "view": ("open MuJoCo's interactive viewer on a task", _view_parser),
+    "check-sensor": (
+        "push the grasped object in known directions: check the wrench sign, frame and stiffness",
+        _check_sensor_parser,
+    ),
     "export-onnx": ("the policy as an ONNX model for C++ controllers", _export_onnx_parser),
 }
 

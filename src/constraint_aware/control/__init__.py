@@ -12,6 +12,7 @@ from constraint_aware.control.controllers import (
     make_controller,
 )
 from constraint_aware.control.executor import Executor, ExecutorConfig, command_jump_bound
+from constraint_aware.control.probe import PROBE_VERDICTS, ProbeConfig, ProbeResult, probe_sensor
 from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord, StepRecord
 from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench, reported_stiffness
 from constraint_aware.control.settings import Settings, parse_settings
@@ -21,11 +22,14 @@ __all__ = [
     "OUTCOMES",
     "OUTCOME_MEANINGS",
     "POLICY_CONTROLLERS",
+    "PROBE_VERDICTS",
     "ControlInput",
     "DirectionController",
     "Executor",
     "ExecutorConfig",
     "Pose",
+    "ProbeConfig",
+    "ProbeResult",
     "Robot",
     "RunRecord",
     "Settings",
@@ -35,5 +39,6 @@ __all__ = [
     "command_jump_bound",
     "make_controller",
     "parse_settings",
+    "probe_sensor",
     "reported_stiffness",
 ]

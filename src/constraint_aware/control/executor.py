@@ -183,6 +183,9 @@ class ExecutorConfig:
     min_step_fraction: float = 0.2  # a step the prediction shortens below this fraction of
     # step_length is refused (stop `force_limit`)
     self_check_steps: int = 8  # moves during which the wrench convention is checked (0: off)
+    stiffness: float | None = None  # [N/m] the arm's stiffness as the wrist sensor sees it,
+    # used instead of the robot's `translational_stiffness` (e.g. measured by
+    # control.probe.probe_sensor); None: the robot's report
 
     def __post_init__(self) -> None:
         name = "ExecutorConfig."
@@ -213,6 +216,8 @@ class ExecutorConfig:
         check_int(name + "lost_contact_steps", self.lost_contact_steps, low=1)
         check_int(name + "offset_samples", self.offset_samples, low=2)
         check_int(name + "ramp_up_steps", self.ramp_up_steps, low=0)
+        if self.stiffness is not None:
+            check_number(name + "stiffness", self.stiffness, low=0, low_open=True, unit="N/m")
         if self.rotation_radius is not None:
             check_number(
                 name + "rotation_radius", self.rotation_radius, low=0, low_open=True, unit="m"
@@ -381,6 +386,13 @@ class Executor:
             stiffness, ignored = reported_stiffness(self.robot)
             if ignored:
                 record.notes.append(ignored)
+            if cfg.stiffness is not None:
+                reported = "none" if stiffness is None else f"{stiffness:g} N/m"
+                record.notes.append(
+                    f"stiffness {cfg.stiffness:.0f} N/m from the configuration (robot reports "
+                    f"{reported})"
+                )
+                stiffness = cfg.stiffness
             tau = self._tracking_time_constant(record)
             if cfg.max_lead is not None:
                 max_lead = cfg.max_lead

@@ -16,6 +16,12 @@ from constraint_aware.control.controllers import (
     make_controller,
 )
 from constraint_aware.control.executor import Executor, ExecutorConfig, orient_normal
+from constraint_aware.control.probe import (
+    STIFFNESS_VERDICTS,
+    ProbeConfig,
+    ProbeResult,
+    probe_sensor,
+)
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import Robot
 from constraint_aware.control.settings import Settings
@@ -85,6 +91,9 @@ class RunSpec:
     controller_params: tuple[tuple[str, float], ...] = ()  # e.g. classical gains
     robot: str = DEFAULT_ROBOT  # embodiment spec (sim.embodiment): "hook-hand", "jaco",
     # optionally with variants: "jaco:stiffness=5000,period=0.05"
+    probe: bool = False  # before the run, push the grasped object in the workplane
+    # (control.probe) and use the arm stiffness measured at the wrist sensor instead of the
+    # robot's report (kept, with a note, when the probe cannot measure it)
 
     def with_settings(self, settings: Settings) -> RunSpec:
         """This spec with `--set` settings (control.settings.parse_settings) added: task
@@ -161,6 +170,34 @@ def simulated_robot(
     return make_embodiment(robot, task, rng, noise, bias)
 
 
+def grasped(spec: RunSpec) -> tuple[TaskConfig, Embodiment]:
+    """The spec's task and its simulated robot, reset: holding the grasp, at rest."""
+    task = build_task(spec)
+    sensor_rng = np.random.default_rng(spec.seed + 7919)
+    bias = np.asarray(spec.sensor_bias, dtype=float)
+    sim = simulated_robot(spec.robot, task, sensor_rng, spec.sensor_noise, bias)
+    sim.reset()
+    return task, sim
+
+
+def probe(
+    spec: RunSpec,
+    config: ProbeConfig | None = None,
+    wrap: Callable[[Embodiment], Robot] | None = None,
+) -> tuple[ProbeResult, Embodiment]:
+    """`control.probe.probe_sensor` on the spec's grasped task, pushing in its workplane.
+    wrap: puts a Robot between the probe and the simulator (fault injection)."""
+    task, sim = grasped(spec)
+    robot: Robot = sim if wrap is None else wrap(sim)
+    return probe_sensor(robot, task.workplane_normal, config or _probe_config(task)), sim
+
+
+def _probe_config(task: TaskConfig) -> ProbeConfig:
+    """The probe's defaults, its force limit no higher than the task's."""
+    default = ProbeConfig()
+    return dataclasses.replace(default, force_limit=min(default.force_limit, task.force_limit))
+
+
 def controller_geometry(
     cfg: ExecutorConfig, robot: Robot, d0: FloatArray
 ) -> tuple[FloatArray, float | None]:
@@ -194,13 +231,17 @@ def run(
     wrap: puts a Robot between the executor and the simulator (fault injection); the
     simulator stays the task monitor. Exceptions carry the record as `exc.run_record`.
     """
-    task = build_task(spec)
-    sensor_rng = np.random.default_rng(spec.seed + 7919)
-    bias = np.asarray(spec.sensor_bias, dtype=float)
-    sim = simulated_robot(spec.robot, task, sensor_rng, spec.sensor_noise, bias)
-    sim.reset()
+    task, sim = grasped(spec)
+    robot: Robot = sim if on_step is None else _Observed(sim, on_step)  # type: ignore[assignment]
+    if wrap is not None:
+        robot = wrap(robot)  # type: ignore[arg-type]
     cfg = executor_config(task, spec.torque_policy)
     changes = {**spec.executor_overrides, **(executor_overrides or {})}
+    probed: ProbeResult | None = None
+    if spec.probe:
+        probed = probe_sensor(robot, task.workplane_normal, _probe_config(task))
+        if probed.arm_stiffness is not None and probed.verdict in STIFFNESS_VERDICTS:
+            changes.setdefault("stiffness", probed.arm_stiffness)
     if changes:
         cfg = dataclasses.replace(cfg, **changes)  # type: ignore[arg-type]
     assert cfg.workplane_normal is not None
@@ -213,11 +254,7 @@ def run(
     ctrl = controller or make_controller(
         spec.controller, policy, rate, normal, dict(spec.controller_params)
     )
-    executor = Executor(sim, ctrl, cfg, monitor=sim)
-    if on_step is not None:
-        executor.robot = _Observed(sim, on_step)  # type: ignore[assignment]
-    if wrap is not None:
-        executor.robot = wrap(executor.robot)  # type: ignore[arg-type]
+    executor = Executor(robot, ctrl, cfg, monitor=sim)
     label = {
         "task": spec.task,
         "controller": ctrl.name,
@@ -236,7 +273,12 @@ def run(
     driver = driving_policy(ctrl)
     if driver is not None:
         label["policy"] = driver.name  # which policy drove the run (the card's name)
-    return executor.run(d0, label), sim
+    if probed is not None:
+        label["probe"] = probed.verdict
+    record = executor.run(d0, label)
+    if probed is not None:
+        record.notes.insert(0, f"probe: {probed.verdict}: {probed.reason}")
+    return record, sim
 
 
 class _Observed:

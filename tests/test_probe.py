@@ -1,0 +1,234 @@
+"""The setup-time sensor probe (control/probe.py): ground truth from a fake rail, fault
+injection (sign, frame, stiffness report, NaN, exceptions, force limit), and the simulator."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from constraint_aware.control.probe import (
+    PROBE_VERDICTS,
+    ProbeConfig,
+    ProbeResult,
+    probe_sensor,
+    push_directions,
+)
+from constraint_aware.errors import ConfigError
+from constraint_aware.spatial import Pose, Wrench
+
+U = np.array([1.0, 0.0, 0.0])  # the rail
+N = np.array([0.0, 0.0, 1.0])  # the workplane normal
+WEIGHT = np.array([0.0, 0.0, -6.0])
+
+
+@dataclass
+class Rail:
+    """A hand rigidly grasping a body on a frictionless rail along U; arm stiffness k [N/m].
+
+    Each period the hand closes half of the way to its equilibrium (the target's projection on
+    the rail, or the target itself when `free`), so settling takes several periods. The
+    object's force on the hand is k (position - target) plus the hand's weight. Options inject
+    faults: `rotation` turns the reported force, `reported` is the stiffness the robot claims,
+    `nan_after`/`raise_after` break the wrench reading / the command after that many calls."""
+
+    k: float = 2000.0
+    reported: float | None = 2000.0
+    free: bool = False
+    rotation: Rotation = field(default_factory=Rotation.identity)
+    nan_after: int | None = None
+    raise_after: int | None = None
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    target: Pose = field(default_factory=lambda: Pose(np.zeros(3), Rotation.identity()))
+    commands: list[Pose] = field(default_factory=list)
+    reads: int = 0
+    holds: int = 0
+
+    control_period = 0.1
+
+    @property
+    def translational_stiffness(self) -> float | None:
+        return self.reported
+
+    def read_wrench(self) -> Wrench:
+        self.reads += 1
+        if self.nan_after is not None and self.reads > self.nan_after:
+            return Wrench(np.full(3, np.nan), np.zeros(3))
+        force = self.k * (self.position - self.target.position) + WEIGHT
+        return Wrench(self.rotation.apply(force), np.zeros(3))
+
+    def read_pose(self) -> Pose:
+        return Pose(self.position.copy(), self.target.orientation)
+
+    def commanded_pose(self) -> Pose:
+        return self.target
+
+    def grasp_contact(self) -> bool | None:
+        return None
+
+    def command_pose(self, pose: Pose) -> None:
+        if self.raise_after is not None and len(self.commands) >= self.raise_after:
+            raise ConnectionError("comms lost (injected)")
+        self.target = pose
+        self.commands.append(pose)
+
+    def advance(self) -> None:
+        goal = self.target.position if self.free else float(self.target.position @ U) * U
+        self.position = self.position + 0.5 * (goal - self.position)
+
+    def hold(self) -> None:
+        self.holds += 1
+
+
+def test_directions_are_unit_and_in_the_plane() -> None:
+    dirs = push_directions(8, N)
+    assert len(dirs) == 8
+    for u in dirs:
+        assert math.isclose(float(np.linalg.norm(u)), 1.0)
+        assert abs(float(u @ N)) < 1e-12
+    assert np.allclose(sum(dirs), 0.0, atol=1e-12)  # evenly spaced
+    assert len(push_directions(8, None)) == 6  # without a plane: +-x, +-y, +-z
+
+
+def test_healthy_rail_is_consistent_and_measures_the_true_stiffness() -> None:
+    robot = Rail()
+    result = probe_sensor(robot, N)
+    assert result.verdict == "consistent", result.reason
+    assert result.passed
+    assert result.median_cos == pytest.approx(-1.0, abs=1e-3)
+    assert result.arm_stiffness == pytest.approx(2000.0, rel=0.01)
+    judged = [p for p in result.pushes if p.judged]
+    # every push with a component across the rail is blocked; the two along it are free
+    assert len(judged) == 6
+    for p in result.pushes:
+        across = math.sqrt(max(0.0, 1.0 - float(np.asarray(p.direction) @ U) ** 2))
+        # the rail blocks the across part only: the push's stiffness is k times its square
+        assert p.push_stiffness == pytest.approx(2000.0 * across**2, abs=40.0)
+    assert result.force_offset == pytest.approx(WEIGHT.tolist())
+    # completed: the setpoint is restored and kept (hold() would move it onto the measured
+    # pose and release the grasp's preload before the run)
+    assert np.allclose(robot.commands[-1].position, 0.0)
+    assert robot.holds == 0
+
+
+def test_every_command_stays_within_the_push_of_the_setpoint() -> None:
+    robot = Rail()
+    cfg = ProbeConfig(amplitude=0.002)
+    probe_sensor(robot, N, cfg)
+    for pose in robot.commands:
+        assert np.all(np.isfinite(pose.position))
+        assert float(np.linalg.norm(pose.position)) <= 0.002 + 1e-12
+    assert np.allclose(robot.commands[-1].position, 0.0)  # the setpoint is restored
+
+
+def test_a_flipped_sign_and_a_rotated_frame_are_named() -> None:
+    flipped = probe_sensor(Rail(rotation=Rotation.from_rotvec(math.pi * U)), N)
+    # a rotation by pi about U flips the force's across-rail part: the in-plane sign
+    assert flipped.verdict in ("flipped_sign", "inconsistent")
+    negated = probe_sensor(_Negated(), N)
+    assert negated.verdict == "flipped_sign", negated.reason
+    assert negated.median_cos == pytest.approx(1.0, abs=1e-3)
+    rotated = probe_sensor(Rail(rotation=Rotation.from_rotvec(math.pi / 2 * N)), N)
+    assert rotated.verdict == "inconsistent", rotated.reason
+    assert "90 deg" in rotated.reason
+
+
+@dataclass
+class _Negated(Rail):
+    def read_wrench(self) -> Wrench:
+        w = super().read_wrench()
+        return Wrench(-w.force, -w.torque)
+
+
+def test_a_wrong_stiffness_report_is_a_mismatch_and_none_is_fine() -> None:
+    wrong = probe_sensor(Rail(reported=1000.0), N)
+    assert wrong.verdict == "stiffness_mismatch", wrong.reason
+    assert "2000 N/m" in wrong.reason and "1000 N/m" in wrong.reason
+    unreported = probe_sensor(Rail(reported=None), N)
+    assert unreported.verdict == "consistent"
+    nan_report = probe_sensor(Rail(reported=math.nan), N)
+    assert nan_report.verdict == "consistent"
+    assert any("ignored translational_stiffness" in n for n in nan_report.notes)
+
+
+def test_an_object_that_follows_every_push_is_inconclusive() -> None:
+    result = probe_sensor(Rail(free=True), N)
+    assert result.verdict == "inconclusive"
+    assert "0 of 8" in result.reason
+    assert not result.passed
+
+
+def test_force_limit_stops_restores_the_setpoint_and_holds() -> None:
+    robot = Rail(k=20000.0, reported=20000.0)  # 3 mm blocked: 60 N
+    result = probe_sensor(robot, N)
+    assert result.verdict == "force_limit", result.reason
+    assert np.allclose(robot.commands[-1].position, 0.0)
+    assert robot.holds == 1
+
+
+def test_a_nan_reading_stops_with_a_named_reason_and_holds() -> None:
+    robot = Rail(nan_after=12)
+    result = probe_sensor(robot, N)
+    assert result.verdict == "bad_reading"
+    assert "not 3 finite numbers" in result.reason
+    assert np.allclose(robot.commands[-1].position, 0.0)
+    assert robot.holds == 1
+
+
+def test_an_exception_keeps_the_result_and_holds() -> None:
+    robot = Rail(raise_after=3)
+    with pytest.raises(ConnectionError) as info:
+        probe_sensor(robot, N)
+    result = info.value.probe_result  # type: ignore[attr-defined]
+    assert isinstance(result, ProbeResult)
+    assert result.verdict == "error" and "comms lost" in result.reason
+    assert len(result.pushes) == 2  # measured before the failure (push, home, push, home)
+    assert robot.holds == 1
+
+
+def test_config_errors_name_the_field_and_the_range() -> None:
+    with pytest.raises(ConfigError, match=r"amplitude.*\[0\.0001, 0\.02\]"):
+        ProbeConfig(amplitude=0.5)
+    with pytest.raises(ConfigError, match="directions"):
+        ProbeConfig(directions=1)
+    with pytest.raises(ConfigError, match="force_limit"):
+        ProbeConfig(force_limit=math.nan)
+    with pytest.raises(ConfigError, match="workplane_normal"):
+        probe_sensor(Rail(), (0.0, 0.0, 0.0))
+
+
+def test_every_verdict_is_documented() -> None:
+    seen = {"consistent", "flipped_sign", "inconsistent", "stiffness_mismatch"}
+    seen |= {"inconclusive", "force_limit", "bad_reading", "error"}
+    assert seen == set(PROBE_VERDICTS)
+
+
+# --- the simulator -------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("fault", "verdict"),
+    [("none", "consistent"), ("flipped_sign", "flipped_sign"), ("rotated_90", "inconsistent")],
+)
+def test_the_hook_hands_drawer(fault: str, verdict: str) -> None:
+    from constraint_aware.bench.faults import FaultyRobot
+    from constraint_aware.control.simulate import RunSpec, probe
+
+    wrap = None if fault == "none" else (lambda sim: FaultyRobot(sim, fault, 0))
+    result, _sim = probe(RunSpec("drawer-opening", seed=0), wrap=wrap)
+    assert result.verdict == verdict, result.reason
+    if fault == "none":
+        # the hook hand's arm is a 2000 N/m spring; the drawer's rail blocks the across pushes
+        assert result.arm_stiffness == pytest.approx(2000.0, rel=0.1)
+
+
+def test_a_run_after_the_probe_uses_the_measured_stiffness() -> None:
+    from constraint_aware.control.simulate import RunSpec, run
+
+    record, _sim = run(RunSpec("drawer-opening", seed=0, probe=True))
+    assert record.success, record.reason
+    assert record.label["probe"] == "consistent"
+    assert record.notes[0].startswith("probe: consistent")
+    measured = [n for n in record.notes if n.startswith("stiffness ")]
+    assert measured and "robot reports 2000 N/m" in measured[0]
