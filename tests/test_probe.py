@@ -232,3 +232,41 @@ def test_a_run_after_the_probe_uses_the_measured_stiffness() -> None:
     assert record.notes[0].startswith("probe: consistent")
     measured = [n for n in record.notes if n.startswith("stiffness ")]
     assert measured and "robot reports 2000 N/m" in measured[0]
+
+
+def test_a_probe_that_finds_a_flipped_sign_stops_the_run_before_it_moves() -> None:
+    from constraint_aware.bench.faults import FaultyRobot
+    from constraint_aware.control.simulate import RunSpec, run
+
+    robots: list[FaultyRobot] = []
+
+    def wrap(sim: object) -> FaultyRobot:
+        robots.append(FaultyRobot(sim, "flipped_sign", 0))  # type: ignore[arg-type]
+        return robots[-1]
+
+    record, _sim = run(RunSpec("drawer-opening", seed=0, probe=True), wrap=wrap)
+    assert record.outcome == "sensor_convention"
+    assert record.reason.startswith("probe: flipped_sign")
+    assert record.n_steps == 0
+    twin, robot = robots  # the probe's twin, then the run's robot
+    assert twin.commands and not robot.commands  # the run's robot was never moved
+    assert robot.holds == 1
+
+
+def test_executor_stop_names_the_outcome_and_holds() -> None:
+    from constraint_aware.control.controllers import FixedDirection
+    from constraint_aware.control.executor import Executor, ExecutorConfig
+    from constraint_aware.errors import InvalidInputError
+
+    robot = Rail()
+    executor = Executor(robot, FixedDirection(), ExecutorConfig())
+    with pytest.raises(InvalidInputError, match="start"):
+        executor.stop("timeout", "too early")
+    executor.start(U)
+    with pytest.raises(ConfigError, match="outcome"):
+        executor.stop("success", "not a stop")
+    with pytest.raises(InvalidInputError, match="reason"):
+        executor.stop("timeout", "")
+    record = executor.stop("sensor_convention", "operator")
+    assert (record.outcome, record.reason) == ("sensor_convention", "operator")
+    assert robot.holds == 1

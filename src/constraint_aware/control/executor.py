@@ -41,7 +41,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.controllers import ControlInput, DirectionController, project_on_plane
-from constraint_aware.control.record import RunRecord, StepRecord
+from constraint_aware.control.record import OUTCOMES, RunRecord, StepRecord
 from constraint_aware.control.robot import Robot, TaskMonitor, reported_stiffness
 from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import MIN_THRESHOLD, noise_std, threshold_from_noise
@@ -432,6 +432,20 @@ class Executor:
             return tau
         record.notes.append(f"ignored tracking_time_constant {raw!r} (valid: finite, > 0 [s])")
         return None
+
+    def stop(self, outcome: str, reason: str) -> RunRecord:
+        """End the started run now with a named `outcome` (one of record.OUTCOMES other than
+        "success") and a `reason`; the robot is told to hold. For whatever supervises the
+        run: an operator's stop, or a setup check that failed (control.probe)."""
+        st = self._run
+        if st is None:
+            raise InvalidInputError("Executor.stop: call start() first")
+        if st.record.finished:
+            return st.record
+        check_choice("outcome", outcome, [o for o in OUTCOMES if o != "success"])
+        if not reason:
+            raise InvalidInputError("Executor.stop: reason: a stop needs a reason")
+        return self._finish(st, outcome, reason)
 
     def step(self, wrench: Wrench, pose: Pose) -> Pose | RunRecord:
         """One control period: the latest wrench and pose in, the pose to command out, or the

@@ -53,6 +53,8 @@ PROBE_VERDICTS: dict[str, str] = {
 }
 #: The verdicts whose measured arm stiffness can be used (the wrench convention holds).
 STIFFNESS_VERDICTS = ("consistent", "stiffness_mismatch")
+#: The verdicts that say the wrench convention is wrong: a run must not start.
+CONVENTION_VERDICTS = ("flipped_sign", "inconsistent")
 #: Judged pushes a verdict needs (two directions the object blocks, e.g. both sides of a rail).
 PROBE_MIN_JUDGED = 2
 #: A reported stiffness off the measured one by more than this factor is a mismatch.

@@ -17,6 +17,7 @@ from constraint_aware.control.controllers import (
 )
 from constraint_aware.control.executor import Executor, ExecutorConfig, orient_normal
 from constraint_aware.control.probe import (
+    CONVENTION_VERDICTS,
     STIFFNESS_VERDICTS,
     ProbeConfig,
     ProbeResult,
@@ -91,9 +92,12 @@ class RunSpec:
     controller_params: tuple[tuple[str, float], ...] = ()  # e.g. classical gains
     robot: str = DEFAULT_ROBOT  # embodiment spec (sim.embodiment): "hook-hand", "jaco",
     # optionally with variants: "jaco:stiffness=5000,period=0.05"
-    probe: bool = False  # before the run, push the grasped object in the workplane
-    # (control.probe) and use the arm stiffness measured at the wrist sensor instead of the
-    # robot's report (kept, with a note, when the probe cannot measure it)
+    probe: bool = False  # probe at setup (control.probe) on a twin of this task (same
+    # robot, object, grasp and seed), then run on a fresh grasp: the arm stiffness measured
+    # at the wrist replaces the robot's report (kept, with a note, when the probe cannot
+    # measure it), and a probe that finds the wrench convention wrong stops the run before it
+    # moves (`sensor_convention`). On a real arm: probe, re-grasp, run. Probing the object
+    # and then running without re-grasping disturbs the grasp (benchmarks/probe.py)
 
     def with_settings(self, settings: Settings) -> RunSpec:
         """This spec with `--set` settings (control.settings.parse_settings) added: task
@@ -231,17 +235,17 @@ def run(
     wrap: puts a Robot between the executor and the simulator (fault injection); the
     simulator stays the task monitor. Exceptions carry the record as `exc.run_record`.
     """
+    probed: ProbeResult | None = None
+    if spec.probe:  # at setup, on a twin: the run below starts from an undisturbed grasp
+        probed, _twin = probe(spec, wrap=wrap)
     task, sim = grasped(spec)
     robot: Robot = sim if on_step is None else _Observed(sim, on_step)  # type: ignore[assignment]
     if wrap is not None:
         robot = wrap(robot)  # type: ignore[arg-type]
     cfg = executor_config(task, spec.torque_policy)
     changes = {**spec.executor_overrides, **(executor_overrides or {})}
-    probed: ProbeResult | None = None
-    if spec.probe:
-        probed = probe_sensor(robot, task.workplane_normal, _probe_config(task))
-        if probed.arm_stiffness is not None and probed.verdict in STIFFNESS_VERDICTS:
-            changes.setdefault("stiffness", probed.arm_stiffness)
+    if probed is not None and probed.verdict in STIFFNESS_VERDICTS and probed.arm_stiffness:
+        changes.setdefault("stiffness", probed.arm_stiffness)
     if changes:
         cfg = dataclasses.replace(cfg, **changes)  # type: ignore[arg-type]
     assert cfg.workplane_normal is not None
@@ -273,11 +277,16 @@ def run(
     driver = driving_policy(ctrl)
     if driver is not None:
         label["policy"] = driver.name  # which policy drove the run (the card's name)
-    if probed is not None:
-        label["probe"] = probed.verdict
-    record = executor.run(d0, label)
-    if probed is not None:
-        record.notes.insert(0, f"probe: {probed.verdict}: {probed.reason}")
+    if probed is None:
+        return executor.run(d0, label), sim
+    label["probe"] = probed.verdict
+    said = f"probe: {probed.verdict}: {probed.reason}"
+    if probed.verdict in CONVENTION_VERDICTS:
+        executor.start(d0, label)
+        record = executor.stop("sensor_convention", said)
+    else:
+        record = executor.run(d0, label)
+    record.notes.insert(0, said)
     return record, sim
 
 

@@ -1,0 +1,213 @@
+"""The setup-time sensor probe (control/probe.py) on both embodiments: its verdicts under
+convention faults, and what its measured stiffness does to the policy's runs.
+
+    python benchmarks/probe.py [--seeds 20] [--workers 2] [--out benchmarks/results/probe.json]
+
+Part 1, verdicts: every task, seeds 0-4 with the suite's randomized objects, on the hook hand
+and the Jaco, healthy and with three faults: the wrench sign flipped, the sensor frame turned
+90 deg about the workplane normal (bench/faults.py), and the robot reporting half its
+stiffness. Part 2, runs: controller `policy` on the randomized suite (bench/sweep.py, `--seeds`
+per task) and at the paper's offsets (sensor-noise seeds 0-9), each run once as shipped (the
+step force from the robot's reported stiffness) and once after the probe (`RunSpec.probe`: the
+stiffness the probe measured), with the classical controller beside them. Same seeds
+throughout; per cell the median peak |F|, the median run mean |F| [N], and the run-by-run
+difference (probe minus shipped). Runs are independent, spread over `--workers` processes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import statistics
+import time
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+from constraint_aware.bench.faults import FaultyRobot
+from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
+from constraint_aware.control.simulate import RunSpec, probe, run
+from constraint_aware.sim.tasks import TASKS
+
+DEFAULT_OUT = Path(__file__).parent / "results" / "probe.json"
+ROBOTS = ("hook-hand", "jaco")
+FAULTS = ("none", "flipped_sign", "rotated_90", "stiffness_half")
+VERDICT_SEEDS = range(5)
+PAPER_SEEDS = range(10)
+
+
+class HalfStiffness:
+    """The simulated robot, reporting half its translational stiffness."""
+
+    def __init__(self, sim: Any) -> None:
+        self._sim = sim
+        self.translational_stiffness = 0.5 * sim.translational_stiffness
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._sim, name)
+
+
+def verdict(job: tuple[str, str, str, int]) -> dict[str, Any]:
+    robot, task, fault, seed = job
+    wrap: Any = None
+    if fault == "stiffness_half":
+        wrap = HalfStiffness
+    elif fault != "none":
+
+        def wrap(sim: Any) -> FaultyRobot:
+            return FaultyRobot(sim, fault, 0)
+
+    result, _ = probe(RunSpec(task, seed=seed, randomize=True, robot=robot), wrap=wrap)
+    return {
+        "robot": robot,
+        "task": task,
+        "fault": fault,
+        "seed": seed,
+        "verdict": result.verdict,
+        "reason": result.reason,
+        "median_cos": result.median_cos,
+        "arm_stiffness": result.arm_stiffness,
+        "reported_stiffness": result.reported_stiffness,
+        "judged": sum(p.judged for p in result.pushes),
+    }
+
+
+def one_run(spec: RunSpec) -> dict[str, Any]:
+    record, _ = run(spec)
+    s = record.summary()
+    return {
+        "robot": spec.robot,
+        "task": spec.task,
+        "seed": spec.seed,
+        "offset_deg": spec.offset_deg,
+        "randomize": spec.randomize,
+        "controller": spec.controller,
+        "probe": spec.probe,
+        "probe_verdict": record.label.get("probe"),
+        "success": record.success,
+        "outcome": record.outcome,
+        "peak_force_N": s["peak_force_N"],
+        "mean_force_N": s["mean_force_N"],
+    }
+
+
+def run_specs(n_seeds: int) -> list[tuple[str, RunSpec]]:
+    """(cell kind, spec) for part 2."""
+    out: list[tuple[str, RunSpec]] = []
+    for robot in ROBOTS:
+        for spec in suite_specs(n_seeds, ("policy", "classical")):
+            out.extend(_variants("suite", dataclasses.replace(spec, robot=robot)))
+        for task in TASKS:
+            for off in PAPER_OFFSETS[task]:
+                for seed in PAPER_SEEDS:
+                    for controller in ("policy", "classical"):
+                        spec = RunSpec(task, controller, off, seed, robot=robot)
+                        out.extend(_variants(f"paper {off:+.0f}", spec))
+    return out
+
+
+def _variants(kind: str, spec: RunSpec) -> list[tuple[str, RunSpec]]:
+    if spec.controller != "policy":
+        return [(kind, spec)]
+    return [(kind, spec), (kind, dataclasses.replace(spec, probe=True))]
+
+
+def summarize(runs: list[dict[str, Any]], kinds: list[str]) -> list[dict[str, Any]]:
+    cells: dict[tuple[str, str, str], dict[str, list[dict[str, Any]]]] = {}
+    for kind, r in zip(kinds, runs, strict=True):
+        name = (
+            "classical"
+            if r["controller"] == "classical"
+            else ("policy + probe" if r["probe"] else "policy")
+        )
+        cells.setdefault((r["robot"], r["task"], kind), {}).setdefault(name, []).append(r)
+    rows = []
+    for (robot, task, kind), by in sorted(cells.items()):
+        row: dict[str, Any] = {"robot": robot, "task": task, "cell": kind}
+        for name, rs in by.items():
+            row[name] = {
+                "success": sum(r["success"] for r in rs),
+                "runs": len(rs),
+                "peak_force_median": statistics.median(r["peak_force_N"] for r in rs),
+                "mean_force_median": statistics.median(r["mean_force_N"] for r in rs),
+            }
+        shipped = {(r["seed"], r["offset_deg"]): r for r in by.get("policy", [])}
+        probed = {(r["seed"], r["offset_deg"]): r for r in by.get("policy + probe", [])}
+        pairs = [(probed[k], shipped[k]) for k in sorted(shipped) if k in probed]
+        if pairs:
+            row["probe_minus_shipped"] = {
+                "peak_force_median": statistics.median(
+                    a["peak_force_N"] - b["peak_force_N"] for a, b in pairs
+                ),
+                "mean_force_median": statistics.median(
+                    a["mean_force_N"] - b["mean_force_N"] for a, b in pairs
+                ),
+                "probe_lower_mean": sum(a["mean_force_N"] < b["mean_force_N"] for a, b in pairs),
+                "pairs": len(pairs),
+            }
+        rows.append(row)
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=20, help="suite seeds per task (part 2)")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    args = parser.parse_args()
+    start = time.perf_counter()
+    jobs = [(r, t, f, s) for r in ROBOTS for t in TASKS for f in FAULTS for s in VERDICT_SEEDS]
+    specs = run_specs(args.seeds)
+    with ProcessPoolExecutor(args.workers) as pool:
+        verdicts = list(pool.map(verdict, jobs, chunksize=4))
+        runs = list(pool.map(one_run, [s for _, s in specs], chunksize=4))
+    counts = {
+        f"{r} / {f}": dict(
+            Counter(v["verdict"] for v in verdicts if (v["robot"], v["fault"]) == (r, f))
+        )
+        for r in ROBOTS
+        for f in FAULTS
+    }
+    stiffness: dict[str, dict[str, float | None]] = {}
+    for robot in ROBOTS:
+        for task in TASKS:
+            ks = [
+                v["arm_stiffness"]
+                for v in verdicts
+                if (v["robot"], v["task"], v["fault"]) == (robot, task, "none")
+                and v["arm_stiffness"] is not None
+            ]
+            stiffness.setdefault(robot, {})[task] = statistics.median(ks) if ks else None
+    out = {
+        "seeds": args.seeds,
+        "workers": args.workers,
+        "load_average_1min_at_start": os.getloadavg()[0],
+        "verdict_counts": counts,
+        "measured_stiffness_median": stiffness,
+        "cells": summarize(runs, [k for k, _ in specs]),
+        "verdicts": verdicts,
+        "runs": runs,
+        "wall_time_s": time.perf_counter() - start,
+    }
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(out, indent=1) + "\n")
+    print(json.dumps(counts, indent=1))
+    print(json.dumps(stiffness, indent=1))
+    for row in out["cells"]:
+        parts = [f"{row['robot']:9s} {row['task']:16s} {row['cell']:10s}"]
+        for name in ("policy", "policy + probe", "classical"):
+            c = row.get(name)
+            if c:
+                parts.append(
+                    f"{name} {c['success']}/{c['runs']} {c['peak_force_median']:.2f} / "
+                    f"{c['mean_force_median']:.3f}"
+                )
+        print(" | ".join(parts))
+    print(f"{out['wall_time_s']:.0f} s -> {args.out}")
+
+
+if __name__ == "__main__":
+    main()
