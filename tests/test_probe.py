@@ -32,13 +32,15 @@ class Rail:
     Each period the hand closes half of the way to its equilibrium (the target's projection on
     the rail, or the target itself when `free`), so settling takes several periods. The
     object's force on the hand is k (position - target) plus the hand's weight. Options inject
-    faults: `rotation` turns the reported force, `reported` is the stiffness the robot claims,
-    `nan_after`/`raise_after` break the wrench reading / the command after that many calls."""
+    faults: `rotation` turns the reported force, `sign` flips it, `reported` is the stiffness
+    the robot claims, `nan_after`/`raise_after` break the wrench reading / the command after
+    that many calls."""
 
     k: float = 2000.0
     reported: float | None = 2000.0
     free: bool = False
     rotation: Rotation = field(default_factory=Rotation.identity)
+    sign: float = 1.0  # -1: the driver reports the wrench with the opposite sign
     nan_after: int | None = None
     raise_after: int | None = None
     position: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -58,7 +60,7 @@ class Rail:
         if self.nan_after is not None and self.reads > self.nan_after:
             return Wrench(np.full(3, np.nan), np.zeros(3))
         force = self.k * (self.position - self.target.position) + WEIGHT
-        return Wrench(self.rotation.apply(force), np.zeros(3))
+        return Wrench(self.sign * self.rotation.apply(force), np.zeros(3))
 
     def read_pose(self) -> Pose:
         return Pose(self.position.copy(), self.target.orientation)
@@ -128,19 +130,12 @@ def test_a_flipped_sign_and_a_rotated_frame_are_named() -> None:
     flipped = probe_sensor(Rail(rotation=Rotation.from_rotvec(math.pi * U)), N)
     # a rotation by pi about U flips the force's across-rail part: the in-plane sign
     assert flipped.verdict in ("flipped_sign", "inconsistent")
-    negated = probe_sensor(_Negated(), N)
+    negated = probe_sensor(Rail(sign=-1.0), N)
     assert negated.verdict == "flipped_sign", negated.reason
     assert negated.median_cos == pytest.approx(1.0, abs=1e-3)
     rotated = probe_sensor(Rail(rotation=Rotation.from_rotvec(math.pi / 2 * N)), N)
     assert rotated.verdict == "inconsistent", rotated.reason
     assert "90 deg" in rotated.reason
-
-
-@dataclass
-class _Negated(Rail):
-    def read_wrench(self) -> Wrench:
-        w = super().read_wrench()
-        return Wrench(-w.force, -w.torque)
 
 
 def test_a_wrong_stiffness_report_is_a_mismatch_and_none_is_fine() -> None:
