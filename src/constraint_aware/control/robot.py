@@ -41,7 +41,11 @@ class Robot(Protocol):
     - `grasp_contact() -> bool | None` (below); without it contact is judged from |F|;
     - `translational_stiffness: float` [N/m], the arm's Cartesian impedance stiffness along the
       motion; with the step length it gives the step force k*delta a policy may use, the
-      force predicted for the next step and the bound on the target's lead;
+      force predicted for the next step and the bound on the target's lead. What matters is
+      the stiffness the wrist sensor sees, which an arm's joint-friction feed-forward can
+      raise above its controller's setting (the simulated Jaco: 1.4-2.5 x its 1000 N/m);
+      `control.probe.probe_sensor` measures it, and `ExecutorConfig.stiffness` overrides the
+      report with it;
     - `tracking_time_constant: float` [s], tau: how the tool lags a commanded pose in free
       space, as a first-order response (an impedance with damping c on the tool's velocity:
       tau = c / k). A tool following a setpoint that moves at velocity v trails it by tau v,
