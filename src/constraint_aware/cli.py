@@ -731,6 +731,11 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
 
 
 # --- cap check-sensor -------------------------------------------------------------------------
+#: The bench's faults that act on every period from the start (or from its 5th): the ones
+#: meaningful for a probe, which makes no executor moves.
+PROBE_FAULTS = ("flipped_sign", "rotated_90", "frozen", "bias_drift", "stale_wrench")
+
+
 def _check_sensor_parser(p: argparse.ArgumentParser) -> None:
     from constraint_aware.bench.faults import FAULTS
     from constraint_aware.control.probe import ProbeConfig
@@ -741,8 +746,10 @@ def _check_sensor_parser(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--fault",
         default="none",
-        choices=("none", *FAULTS),
-        help="a fault to inject between the probe and the robot (bench/faults.py)",
+        choices=("none", *PROBE_FAULTS),
+        help="a fault to inject between the probe and the robot (bench/faults.py: "
+        + "; ".join(f"{f}: {FAULTS[f]}" for f in PROBE_FAULTS)
+        + "; the bench's other faults are timed by the executor's moves and are not offered)",
     )
     specs = add_dataclass_flags(p.add_argument_group("probe"), ProbeConfig)
     p.add_argument("--json", metavar="PATH", help="the probe's result as JSON ('-' = stdout)")
@@ -751,7 +758,7 @@ def _check_sensor_parser(p: argparse.ArgumentParser) -> None:
 
 def cmd_check_sensor(args: argparse.Namespace) -> int:
     from constraint_aware.bench.faults import FaultyRobot
-    from constraint_aware.control.probe import PROBE_VERDICTS, ProbeConfig
+    from constraint_aware.control.probe import PROBE_VERDICTS, STIFFNESS_VERDICTS, ProbeConfig
     from constraint_aware.control.simulate import RunSpec, probe
 
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
@@ -767,15 +774,19 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
 
     try:
         result, _sim = probe(spec, config, wrap)
-    except Exception as exc:
+    except BaseException as exc:  # write what the probe has, then report (Ctrl-C: 130)
         partial = getattr(exc, "probe_result", None)
-        if partial is None or not args.json:
+        if partial is None:
             raise
-        write_json(partial.to_dict(), args.json)
+        if args.json:
+            write_json(partial.to_dict(), args.json)
+        if not isinstance(exc, Exception):
+            raise
         print_error(f"the probe raised {type(exc).__name__}: {exc}")
         return EXIT_FAILED
     out = human(args)
-    table = Table(title=f"{args.task} / {args.robot}: pushes of {result_amplitude(config)} mm")
+    amplitude = (config or ProbeConfig()).amplitude * 1000
+    table = Table(title=Text(f"{args.task} / {args.robot}: pushes of {amplitude:g} mm"))
     for column in ("direction", "|dF| [N]", "cos(dF, stretch)", "arm [N/m]", "push [N/m]"):
         table.add_column(column, justify="right")
     for push in result.pushes:
@@ -788,11 +799,11 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
             f"{push.push_stiffness:.0f}",
         )
     out.print(table)
-    ok = result.verdict == "consistent"
+    ok = result.verdict in STIFFNESS_VERDICTS  # the convention holds
     out.print(
         Text.assemble(
             "verdict: ",
-            (result.verdict, "green" if ok else "red"),
+            (result.verdict, "green" if result.verdict == "consistent" else "red"),
             f" ({result.reason}). {PROBE_VERDICTS[result.verdict]}",
         ),
         soft_wrap=True,
@@ -804,12 +815,6 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
     return EXIT_OK if ok else EXIT_FAILED
 
 
-def result_amplitude(config: Any) -> str:
-    from constraint_aware.control.probe import ProbeConfig
-
-    return f"{(config or ProbeConfig()).amplitude * 1000:g}"
-
-
 # --- parser -----------------------------------------------------------------------------------
 COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
     "bench": ("reproduce the paper's experiments as a report", _bench_parser),
@@ -819,7 +824,8 @@ COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
     "eval": ("evaluate a policy beside the reference controllers", _eval_parser),
     "view": ("open MuJoCo's interactive viewer on a task", _view_parser),
     "check-sensor": (
-        "push the grasped object in known directions: check the wrench sign, frame and stiffness",
+        "push the grasped object in known directions: check the wrench sign, frame and "
+        "stiffness (exit 0 when the convention holds)",
         _check_sensor_parser,
     ),
     "export-onnx": ("the policy as an ONNX model for C++ controllers", _export_onnx_parser),

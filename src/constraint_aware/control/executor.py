@@ -42,7 +42,12 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.controllers import ControlInput, DirectionController, project_on_plane
 from constraint_aware.control.record import OUTCOMES, RunRecord, StepRecord
-from constraint_aware.control.robot import Robot, TaskMonitor, reported_stiffness
+from constraint_aware.control.robot import (
+    Robot,
+    TaskMonitor,
+    reported_stiffness,
+    reported_time_constant,
+)
 from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import MIN_THRESHOLD, noise_std, threshold_from_noise
 from constraint_aware.errors import (
@@ -217,7 +222,9 @@ class ExecutorConfig:
         check_int(name + "offset_samples", self.offset_samples, low=2)
         check_int(name + "ramp_up_steps", self.ramp_up_steps, low=0)
         if self.stiffness is not None:
-            check_number(name + "stiffness", self.stiffness, low=0, low_open=True, unit="N/m")
+            check_number(
+                name + "stiffness", self.stiffness, low=0, low_open=True, high=1e6, unit="N/m"
+            )
         if self.rotation_radius is not None:
             check_number(
                 name + "rotation_radius", self.rotation_radius, low=0, low_open=True, unit="m"
@@ -421,17 +428,10 @@ class Executor:
     def _tracking_time_constant(self, record: RunRecord) -> float | None:
         """[s] the robot's optional `tracking_time_constant` if it is a finite number > 0;
         otherwise None (quasi-static, as without it) and a note in the record."""
-        raw = getattr(self.robot, "tracking_time_constant", None)
-        if raw is None:
-            return None
-        try:
-            tau = float(raw)
-        except (TypeError, ValueError):
-            tau = math.nan
-        if math.isfinite(tau) and tau > 0:
-            return tau
-        record.notes.append(f"ignored tracking_time_constant {raw!r} (valid: finite, > 0 [s])")
-        return None
+        tau, ignored = reported_time_constant(self.robot)
+        if ignored:
+            record.notes.append(ignored)
+        return tau
 
     def stop(self, outcome: str, reason: str) -> RunRecord:
         """End the started run now with a named `outcome` (one of record.OUTCOMES other than

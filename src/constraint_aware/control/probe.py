@@ -6,23 +6,30 @@ to carry a force, and on most healthy runs it ends "inconclusive" (README: hook 
 100 suite runs, Jaco 54). The probe makes the moves itself. Holding the grasp, it commands
 the hand `amplitude` away from its setpoint in evenly spaced workplane directions, one at a
 time, waits until the hand has settled, reads the wrench and the pose, and commands the hand
-back. Where the object blocks a push, the arm's spring stretches and, with the `Robot`
+back, where it reads them again: each push is compared with the reading at the setpoint just
+before it. Where the object blocks a push, the arm's spring stretches and, with the `Robot`
 convention (the object's force on the hand), the change of the force opposes the change of
-the stretch (commanded minus measured position):
+the stretch (the robot's setpoint minus the measured position):
 
     dF = -k d(stretch)      so cos(dF, d stretch) = -1 and |dF| / |d stretch| = k.
 
 A flipped sign gives cos = +1; a frame rotated about the normal gives the rotation's cosine.
-The ratio is the arm's stiffness along the push, which the policy's step force k*delta and the
-executor's force prediction take from `translational_stiffness`. Pushes the object follows
-(along a drawer's rail) carry little force and are not judged.
+The ratio is the arm's stiffness along the push as the wrist sensor sees it, which the
+policy's step force k*delta and the executor's force prediction take from
+`translational_stiffness`. Pushes the object follows (along a drawer's rail) carry little
+force and are not judged.
 
-Safety, as in the executor: every reading is checked (finite, |dF| below `force_limit`); a stop
-commands the setpoint back, waits, and calls `hold()`; an exception gets the result attached as
-`exc.probe_result` after `hold()`. A completed probe leaves the setpoint where it found it and
-does not call `hold()`, which would move the setpoint onto the measured pose and release the
-grasp's preload before the run: on the Jaco's door at +15 deg (seed 0) a run after a probe that
-ended with hold() peaked at 18.8 N, and 9.6 N after one that did not. It never imports MuJoCo.
+What is not a sensor convention is named as such, not judged: a reading at the setpoint that
+changes between pushes (`unsteady`: a drifting sensor, a creeping grasp), identical samples
+(`bad_reading`, a stale driver) and an arm that neither moves nor meets a force on any push
+(`not_following`).
+
+Safety, as in the executor: every reading is checked (finite, not stale, |dF| below
+`force_limit`); a stop commands the setpoint back (when it was read and finite), waits, and
+calls `hold()`; an exception does the same as far as the robot lets it and carries the result
+as `exc.probe_result`. A completed probe leaves the setpoint where it found it and does not
+call `hold()`, which would move the setpoint onto the measured pose and release the grasp's
+preload before the run. It never imports MuJoCo.
 """
 
 from __future__ import annotations
@@ -33,9 +40,9 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.control.executor import SELF_CHECK_CONFIRM_COS, SELF_CHECK_MIN_FORCE
-from constraint_aware.control.robot import Robot, reported_stiffness
-from constraint_aware.errors import check_int, check_number, check_unit_vector
+from constraint_aware.control.executor import SELF_CHECK_MIN_FORCE
+from constraint_aware.control.robot import Robot, reported_stiffness, reported_time_constant
+from constraint_aware.errors import ConfigError, check_int, check_number, check_unit_vector
 from constraint_aware.geometry import FloatArray
 from constraint_aware.spatial import Pose
 
@@ -46,10 +53,15 @@ PROBE_VERDICTS: dict[str, str] = {
     "inconsistent": "the force and the stretch are neither opposed nor aligned (a rotated frame)",
     "stiffness_mismatch": "the convention holds, but the measured arm stiffness is not the "
     "reported one",
-    "inconclusive": "too few pushes met a blocked direction (the object followed them)",
+    "inconclusive": "too few pushes met a blocked direction and settled",
+    "unsteady": "the reading at the setpoint changed between pushes (a drifting sensor or a "
+    "creeping grasp): stopped, setpoint restored",
+    "not_following": "the hand neither moved nor met a force on any push: the arm does not "
+    "follow its setpoint",
     "force_limit": "a push raised |dF| above the force limit: stopped, setpoint restored",
-    "bad_reading": "a non-finite wrench or pose: stopped, setpoint restored",
-    "error": "the robot raised: held, the result attached to the exception",
+    "bad_reading": "a non-finite or stale wrench, or a non-finite pose: stopped, setpoint restored",
+    "error": "the robot raised: setpoint restored where possible, held, the result attached to "
+    "the exception",
 }
 #: The verdicts whose measured arm stiffness can be used (the wrench convention holds).
 STIFFNESS_VERDICTS = ("consistent", "stiffness_mismatch")
@@ -57,8 +69,25 @@ STIFFNESS_VERDICTS = ("consistent", "stiffness_mismatch")
 CONVENTION_VERDICTS = ("flipped_sign", "inconsistent")
 #: Judged pushes a verdict needs (two directions the object blocks, e.g. both sides of a rail).
 PROBE_MIN_JUDGED = 2
+#: |median cos(dF, stretch)| at least this judges the convention: within 60 deg of opposed
+#: (consistent) or of aligned (flipped); in between the frame is rotated.
+PROBE_CONVENTION_COS = 0.5
 #: A reported stiffness off the measured one by more than this factor is a mismatch.
 STIFFNESS_TOLERANCE = 1.5
+#: Each push waits at least this many of the robot's reported tracking time constants (the
+#: force builds with the arm's lag even where the hand hardly moves), and at least
+#: MIN_SETTLE_PERIODS control periods.
+SETTLE_TIME_CONSTANTS = 3.0
+MIN_SETTLE_PERIODS = 2
+#: Periods a stop waits after commanding the setpoint back, before `hold()`.
+RESTORE_PERIODS = 3
+#: Identical wrench samples in a row that stop the probe (a stale driver).
+STALE_SAMPLES = 3
+#: The reading at the setpoint may change by at most this x min_force from one push to the
+#: next; more is drift, not the push.
+DRIFT_SHARE = 0.5
+#: A push moved the hand when it moved at least this x amplitude (else blocked or frozen).
+MOVED_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -73,16 +102,20 @@ class ProbeConfig:
     samples: int = 3  # readings averaged after settling, one per period (sensor noise)
     force_limit: float = 20.0  # [N] |dF| above this stops the probe
     min_force: float = SELF_CHECK_MIN_FORCE  # [N] a push is judged when its in-plane |dF| is
-    # at least this (the self-check's own gate)
+    # at least this (the self-check's own gate); < force_limit
 
     def __post_init__(self) -> None:
-        check_number("amplitude", self.amplitude, low=1e-4, high=0.02, unit="m")
-        check_int("directions", self.directions, low=2)
-        check_number("settle_tolerance", self.settle_tolerance, low=0, high=1, low_open=True)
-        check_int("max_settle_periods", self.max_settle_periods, low=1)
-        check_int("samples", self.samples, low=1)
-        check_number("force_limit", self.force_limit, low=0, low_open=True, unit="N")
-        check_number("min_force", self.min_force, low=0, low_open=True, unit="N")
+        n = "ProbeConfig."
+        check_number(n + "amplitude", self.amplitude, low=1e-4, high=0.02, unit="m")
+        check_int(n + "directions", self.directions, low=2)
+        check_number(n + "settle_tolerance", self.settle_tolerance, low=0, high=1, low_open=True)
+        check_int(n + "max_settle_periods", self.max_settle_periods, low=MIN_SETTLE_PERIODS)
+        check_int(n + "samples", self.samples, low=1)
+        limit = check_number(n + "force_limit", self.force_limit, low=0, low_open=True, unit="N")
+        check_number(
+            n + "min_force", self.min_force, low=0, high=limit, low_open=True, high_open=True,
+            unit="N",
+        )  # fmt: skip
 
 
 @dataclass
@@ -90,10 +123,11 @@ class ProbePush:
     """One push. Vectors (3,) in the world frame, in-plane parts when the normal is known."""
 
     direction: list[float]  # unit push direction
-    force_change: list[float]  # dF [N]: the reading minus the one at the setpoint
-    stretch_change: list[float]  # [m] (commanded - measured) minus its value at the setpoint
+    force_change: list[float]  # dF [N]: the reading minus the one at the setpoint before it
+    stretch_change: list[float]  # [m] (setpoint - measured) minus its value at the setpoint
+    moved: float  # [m] how far the hand moved from where it held at the setpoint
     settled: bool  # the hand settled within max_settle_periods
-    judged: bool  # |dF| >= min_force and a measurable stretch
+    judged: bool  # settled, |dF| >= min_force and a measurable stretch
     cos: float | None  # cos(dF, d stretch) when judged; -1 for the Robot convention
     arm_stiffness: float | None  # [N/m] |dF| / |d stretch| when judged
     push_stiffness: float  # [N/m] -dF . direction / amplitude: arm, grasp and object in series
@@ -106,7 +140,7 @@ class ProbeResult:
     verdict: str = "running"
     reason: str = ""
     pushes: list[ProbePush] = field(default_factory=list)
-    force_offset: list[float] = field(default_factory=list)  # [N] the reading at the setpoint
+    force_offset: list[float] = field(default_factory=list)  # [N] the first setpoint reading
     median_cos: float | None = None
     arm_stiffness: float | None = None  # [N/m] median over judged pushes
     reported_stiffness: float | None = None  # [N/m] the robot's translational_stiffness
@@ -161,24 +195,33 @@ def probe_sensor(
         normal = np.asarray(check_unit_vector("workplane_normal", workplane_normal))
     result = ProbeResult()
     result.reported_stiffness, note = reported_stiffness(robot)
-    if note:
-        result.notes.append(note)
+    tau, tau_note = reported_time_constant(robot)
+    result.notes.extend(n for n in (note, tau_note) if n)
+    reader = _Reader(robot, cfg, tau)
     home: Pose | None = None
     try:
-        home = robot.commanded_pose()
-        _check_pose(home, "commanded pose")
-        base_force, base_pose, _ = _settle_and_read(robot, cfg, None, None)
+        start = robot.commanded_pose()
+        _check_pose(start, "commanded pose")
+        home = start
+        base_force, base_stretch, base_pose = reader.settle(None)
         result.force_offset = base_force.tolist()
-        base_stretch = home.position - base_pose.position
         for u in push_directions(cfg.directions, normal):
-            target = Pose(home.position + cfg.amplitude * u, home.orientation)
-            robot.command_pose(target)
-            force, pose, settled = _settle_and_read(robot, cfg, base_force, target)
-            d_force = _in_plane(force - base_force, normal)
-            d_stretch = _in_plane(target.position - pose.position - base_stretch, normal)
-            result.pushes.append(_push(u, d_force, d_stretch, settled, cfg))
+            robot.command_pose(Pose(home.position + cfg.amplitude * u, home.orientation))
+            force, stretch, pose, settled = reader.settle_push(base_force)
+            result.pushes.append(
+                _push(u, force - base_force, stretch - base_stretch, pose, base_pose, settled,
+                      normal, cfg)
+            )  # fmt: skip
             robot.command_pose(home)
-            _settle_and_read(robot, cfg, base_force, home)
+            after, after_stretch, after_pose = reader.settle(base_force)
+            drift = float(np.linalg.norm(_in_plane(after - base_force, normal)))
+            if drift > DRIFT_SHARE * cfg.min_force:
+                raise _Stop(
+                    "unsteady",
+                    f"the reading at the setpoint changed by {drift:.2f} N over push "
+                    f"{len(result.pushes)} (at most {DRIFT_SHARE * cfg.min_force:.2f} N)",
+                )
+            base_force, base_stretch, base_pose = after, after_stretch, after_pose
     except _Stop as stop:
         result.verdict, result.reason = stop.verdict, str(stop)
         _restore(robot, home, result)
@@ -186,7 +229,7 @@ def probe_sensor(
     except BaseException as exc:
         result.verdict = "error"
         result.reason = f"{type(exc).__name__}: {exc}"
-        _hold(robot, result)
+        _restore(robot, home, result, wait=False)
         try:
             exc.probe_result = result  # type: ignore[attr-defined]
         except AttributeError:
@@ -194,48 +237,74 @@ def probe_sensor(
         raise
     # completed: the setpoint is back where it was, so the hand holds the grasp as before the
     # probe (hold() would move the setpoint onto the measured pose and release the preload)
-    _verdict(result)
+    _verdict(result, cfg)
     return result
 
 
-def _settle_and_read(
-    robot: Robot, cfg: ProbeConfig, base: FloatArray | None, target: Pose | None
-) -> tuple[FloatArray, Pose, bool]:
-    """Advance until the hand moves less than settle_tolerance x amplitude in a period (or
-    max_settle_periods), then average `samples` readings. Every reading is checked: finite,
-    and |F - base| within the force limit once a base exists."""
-    last = robot.read_pose()
-    _check_pose(last, "pose")
-    settled = False
-    for _ in range(cfg.max_settle_periods):
-        robot.advance()
-        pose = robot.read_pose()
+class _Reader:
+    """Settles and reads, checking every sample: finite, not stale, |F - base| within the
+    force limit once a base exists."""
+
+    def __init__(self, robot: Robot, cfg: ProbeConfig, tau: float | None) -> None:
+        self.robot = robot
+        self.cfg = cfg
+        waits = 0 if tau is None else math.ceil(SETTLE_TIME_CONSTANTS * tau / robot.control_period)
+        self.min_periods = min(max(MIN_SETTLE_PERIODS, waits), cfg.max_settle_periods)
+        self._last: FloatArray | None = None
+        self._repeats = 0
+
+    def settle(self, base: FloatArray | None) -> tuple[FloatArray, FloatArray, Pose]:
+        force, stretch, pose, _ = self.settle_push(base)
+        return force, stretch, pose
+
+    def settle_push(self, base: FloatArray | None) -> tuple[FloatArray, FloatArray, Pose, bool]:
+        """Advance until the hand moves less than settle_tolerance x amplitude in a period
+        (after at least min_periods; at most max_settle_periods), then average `samples`
+        readings. Returns (F, stretch = setpoint - measured, pose, settled)."""
+        cfg = self.cfg
+        last = self._pose()
+        settled = False
+        for period in range(1, cfg.max_settle_periods + 1):
+            self.robot.advance()
+            pose = self._pose()
+            self._force(base)
+            moved = float(np.linalg.norm(pose.position - last.position))
+            last = pose
+            if period >= self.min_periods and moved < cfg.settle_tolerance * cfg.amplitude:
+                settled = True
+                break
+        forces = []
+        for i in range(cfg.samples):
+            if i:
+                self.robot.advance()
+            forces.append(self._force(base))
+        pose = self._pose()
+        setpoint = self.robot.commanded_pose()
+        _check_pose(setpoint, "commanded pose")
+        return np.mean(forces, axis=0), setpoint.position - pose.position, pose, settled
+
+    def _pose(self) -> Pose:
+        pose = self.robot.read_pose()
         _check_pose(pose, "pose")
-        _check_force(robot.read_wrench().force, base, cfg)
-        moved = float(np.linalg.norm(pose.position - last.position))
-        last = pose
-        if moved < cfg.settle_tolerance * cfg.amplitude:
-            settled = True
-            break
-    forces = []
-    for i in range(cfg.samples):
-        if i:
-            robot.advance()
-        forces.append(_check_force(robot.read_wrench().force, base, cfg))
-    pose = robot.read_pose()
-    _check_pose(pose, "pose")
-    return np.mean(forces, axis=0), pose, settled
+        return pose
 
-
-def _check_force(force: object, base: FloatArray | None, cfg: ProbeConfig) -> FloatArray:
-    f = np.asarray(force, dtype=float)
-    if f.shape != (3,) or not np.all(np.isfinite(f)):
-        raise _Stop("bad_reading", f"wrench force {force!r} is not 3 finite numbers")
-    if base is not None:
-        change = float(np.linalg.norm(f - base))
-        if change > cfg.force_limit:
-            raise _Stop("force_limit", f"|dF| = {change:.1f} N > {cfg.force_limit:g} N")
-    return f
+    def _force(self, base: FloatArray | None) -> FloatArray:
+        raw = self.robot.read_wrench().force
+        f = np.asarray(raw, dtype=float)
+        if f.shape != (3,) or not np.all(np.isfinite(f)):
+            raise _Stop("bad_reading", f"wrench force {raw!r} is not 3 finite numbers")
+        if self._last is not None and np.array_equal(f, self._last):
+            self._repeats += 1
+            if self._repeats >= STALE_SAMPLES - 1:
+                raise _Stop("bad_reading", f"{STALE_SAMPLES} identical wrench samples (stale)")
+        else:
+            self._repeats = 0
+        self._last = f
+        if base is not None:
+            change = float(np.linalg.norm(f - base))
+            if change > self.cfg.force_limit:
+                raise _Stop("force_limit", f"|dF| = {change:.1f} N > {self.cfg.force_limit:g} N")
+        return f
 
 
 def _check_pose(pose: Pose, what: str) -> None:
@@ -248,15 +317,24 @@ def _in_plane(v: FloatArray, normal: FloatArray | None) -> FloatArray:
 
 
 def _push(
-    u: FloatArray, d_force: FloatArray, d_stretch: FloatArray, settled: bool, cfg: ProbeConfig
+    u: FloatArray,
+    d_force: FloatArray,
+    d_stretch: FloatArray,
+    pose: Pose,
+    base_pose: Pose,
+    settled: bool,
+    normal: FloatArray | None,
+    cfg: ProbeConfig,
 ) -> ProbePush:
+    d_force, d_stretch = _in_plane(d_force, normal), _in_plane(d_stretch, normal)
     f, s = float(np.linalg.norm(d_force)), float(np.linalg.norm(d_stretch))
-    # a stretch below 2 % of the push is within the settle tolerance: no direction to compare
+    # a stretch below the settle tolerance has no direction to compare
     judged = settled and f >= cfg.min_force and s >= cfg.settle_tolerance * cfg.amplitude
     return ProbePush(
         direction=u.tolist(),
         force_change=d_force.tolist(),
         stretch_change=d_stretch.tolist(),
+        moved=float(np.linalg.norm(_in_plane(pose.position - base_pose.position, normal))),
         settled=settled,
         judged=judged,
         cos=float(d_force @ d_stretch) / (f * s) if judged else None,
@@ -265,25 +343,40 @@ def _push(
     )
 
 
-def _verdict(result: ProbeResult) -> None:
-    judged = [p for p in result.pushes if p.judged]
-    unsettled = sum(not p.settled for p in result.pushes)
+def _verdict(result: ProbeResult, cfg: ProbeConfig) -> None:
+    pushes = result.pushes
+    judged = [p for p in pushes if p.judged]
+    unsettled = sum(not p.settled for p in pushes)
     if unsettled:
-        result.notes.append(f"{unsettled} of {len(result.pushes)} pushes did not settle")
+        result.notes.append(f"{unsettled} of {len(pushes)} pushes did not settle")
+    idle = [
+        p
+        for p in pushes
+        if p.moved < MOVED_SHARE * cfg.amplitude and math.hypot(*p.force_change) < cfg.min_force
+    ]
+    if pushes and len(idle) == len(pushes):
+        result.verdict = "not_following"
+        result.reason = (
+            f"on all {len(pushes)} pushes the hand moved less than "
+            f"{MOVED_SHARE * cfg.amplitude * 1000:.1f} mm and |dF| stayed below "
+            f"{cfg.min_force:g} N"
+        )
+        return
     if len(judged) < PROBE_MIN_JUDGED:
+        blocked = sum(math.hypot(*p.force_change) >= cfg.min_force for p in pushes)
         result.verdict = "inconclusive"
         result.reason = (
-            f"{len(judged)} of {len(result.pushes)} pushes met a blocked direction "
-            f"({PROBE_MIN_JUDGED} needed)"
+            f"{len(judged)} of {len(pushes)} pushes judged ({PROBE_MIN_JUDGED} needed): "
+            f"{blocked} met a force of {cfg.min_force:g} N, {unsettled} did not settle"
         )
         return
     cos = float(np.median([p.cos for p in judged if p.cos is not None]))
     stiffness = float(np.median([p.arm_stiffness for p in judged if p.arm_stiffness]))
     result.median_cos, result.arm_stiffness = cos, stiffness
     counted = f"median cos(dF, stretch) {cos:+.2f} over {len(judged)} pushes"
-    if cos >= SELF_CHECK_CONFIRM_COS:
+    if cos >= PROBE_CONVENTION_COS:
         result.verdict, result.reason = "flipped_sign", counted
-    elif cos > -SELF_CHECK_CONFIRM_COS:
+    elif cos > -PROBE_CONVENTION_COS:
         result.verdict = "inconsistent"
         angle = math.degrees(math.acos(max(-1.0, min(1.0, -cos))))
         result.reason = f"{counted}: the frame looks rotated by about {angle:.0f} deg"
@@ -299,20 +392,26 @@ def _verdict(result: ProbeResult) -> None:
             result.verdict, result.reason = "consistent", f"{counted}; arm {stiffness:.0f} N/m"
 
 
-def _restore(robot: Robot, home: Pose | None, result: ProbeResult) -> None:
-    """After a named stop: command the setpoint back (when known and finite), let a few
-    periods pass, and hold."""
+def check_force_limit(config: ProbeConfig, limit: float) -> ProbeConfig:
+    """`config`, its force limit checked against an object's `limit` [N]: an error names the
+    field when the probe's is higher."""
+    if config.force_limit > limit:
+        raise ConfigError(
+            "ProbeConfig.force_limit", config.force_limit, f"<= the object's limit {limit:g} [N]"
+        )
+    return config
+
+
+def _restore(robot: Robot, home: Pose | None, result: ProbeResult, wait: bool = True) -> None:
+    """After a stop: command the setpoint back (when it was read and finite), let
+    RESTORE_PERIODS pass (not after an exception: the robot may not advance), and hold."""
     try:
         if home is not None:
             robot.command_pose(home)
-            for _ in range(3):
+            for _ in range(RESTORE_PERIODS if wait else 0):
                 robot.advance()
     except Exception as exc:  # the result must still be returned
         result.notes.append(f"restoring the setpoint failed: {exc!r}")
-    _hold(robot, result)
-
-
-def _hold(robot: Robot, result: ProbeResult) -> None:
     hold = getattr(robot, "hold", None)
     if hold is None:
         return

@@ -14,7 +14,14 @@ from typing import Protocol
 from constraint_aware.geometry import FloatArray
 from constraint_aware.spatial import Pose, Wrench
 
-__all__ = ["Pose", "Robot", "TaskMonitor", "Wrench", "reported_stiffness"]
+__all__ = [
+    "Pose",
+    "Robot",
+    "TaskMonitor",
+    "Wrench",
+    "reported_stiffness",
+    "reported_time_constant",
+]
 
 
 class Robot(Protocol):
@@ -125,17 +132,28 @@ class TaskMonitor(Protocol):
     def handle_position(self) -> FloatArray: ...
 
 
+def reported_time_constant(robot: object) -> tuple[float | None, str]:
+    """The robot's optional `tracking_time_constant` [s]: the value if it is a finite number
+    > 0, else None; with a note naming a report that was ignored ("" when the robot reports
+    none or a valid one)."""
+    return _positive_report(robot, "tracking_time_constant", "[s]")
+
+
 def reported_stiffness(robot: object) -> tuple[float | None, str]:
     """The robot's optional `translational_stiffness` [N/m] as the executor uses it: the value
     if it is a finite number > 0, else None; with a note naming a report that was ignored
     ("" when the robot reports none or a valid one)."""
-    raw = getattr(robot, "translational_stiffness", None)
+    return _positive_report(robot, "translational_stiffness", "[N/m]")
+
+
+def _positive_report(robot: object, name: str, unit: str) -> tuple[float | None, str]:
+    raw = getattr(robot, name, None)
     if raw is None:
         return None, ""
     try:
-        stiffness = float(raw)
+        value = float(raw)
     except (TypeError, ValueError):
-        stiffness = math.nan  # not a number: ignored like a NaN
-    if math.isfinite(stiffness) and stiffness > 0:
-        return stiffness, ""
-    return None, f"ignored translational_stiffness {raw!r}"
+        value = math.nan  # not a number: ignored like a NaN
+    if math.isfinite(value) and value > 0:
+        return value, ""
+    return None, f"ignored {name} {raw!r} (valid: finite, > 0 {unit})"

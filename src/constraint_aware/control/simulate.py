@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 from collections.abc import Callable
@@ -21,6 +22,7 @@ from constraint_aware.control.probe import (
     STIFFNESS_VERDICTS,
     ProbeConfig,
     ProbeResult,
+    check_force_limit,
     probe_sensor,
 )
 from constraint_aware.control.record import RunRecord
@@ -193,7 +195,11 @@ def probe(
     wrap: puts a Robot between the probe and the simulator (fault injection)."""
     task, sim = grasped(spec)
     robot: Robot = sim if wrap is None else wrap(sim)
-    return probe_sensor(robot, task.workplane_normal, config or _probe_config(task)), sim
+    if config is None:
+        config = _probe_config(task)
+    else:
+        check_force_limit(config, task.force_limit)
+    return probe_sensor(robot, task.workplane_normal, config), sim
 
 
 def _probe_config(task: TaskConfig) -> ProbeConfig:
@@ -237,7 +243,11 @@ def run(
     """
     probed: ProbeResult | None = None
     if spec.probe:  # at setup, on a twin: the run below starts from an undisturbed grasp
-        probed, _twin = probe(spec, wrap=wrap)
+        try:
+            probed, _twin = probe(spec, wrap=wrap)
+        except BaseException as exc:  # the run's record, finished before it started
+            _attach_setup_record(exc, spec)
+            raise
     task, sim = grasped(spec)
     robot: Robot = sim if on_step is None else _Observed(sim, on_step)  # type: ignore[assignment]
     if wrap is not None:
@@ -288,6 +298,23 @@ def run(
         record = executor.run(d0, label)
     record.notes.insert(0, said)
     return record, sim
+
+
+def _attach_setup_record(exc: BaseException, spec: RunSpec) -> None:
+    """A record for a run whose setup probe raised: outcome "error", the probe's result in
+    its notes, attached to `exc` as `run_record` (as the executor does for a run)."""
+    record = RunRecord(
+        {"task": spec.task, "controller": spec.controller, "seed": spec.seed,
+         "robot": spec.robot, "probe": "error"},
+        [math.nan] * 3,
+        [math.nan] * 3,
+    )  # fmt: skip
+    record.finish("error", f"setup probe: {type(exc).__name__}: {exc}", None)
+    partial = getattr(exc, "probe_result", None)
+    if partial is not None:
+        record.notes.append(f"probe: {len(partial.pushes)} pushes before the error")
+    with contextlib.suppress(AttributeError):  # an exception type with __slots__
+        exc.run_record = record  # type: ignore[attr-defined]
 
 
 class _Observed:
