@@ -11,7 +11,13 @@ per task) and at the paper's offsets (sensor-noise seeds 0-9), each run once as 
 step force from the robot's reported stiffness) and once after the probe (`RunSpec.probe`: the
 stiffness the probe measured), with the classical controller beside them. Same seeds
 throughout; per cell the median peak |F|, the median run mean |F| [N], and the run-by-run
-difference (probe minus shipped). Runs are independent, spread over `--workers` processes.
+difference (probe minus shipped). Part 3, diagnostics behind the README's explanations (seed
+0): the Jaco probed with its joints' friction feed-forward off
+(`OscConfig.friction_compensation = 0`); the hook hand's pole grasp held still for 12 s, no
+probe (the reading and the pole's travel per second); and probing the object and then
+running from that same grasp, without a re-grasp (drawer and pole suites, hook hand), which
+is why `RunSpec.probe` probes a twin. Runs are independent, spread over `--workers`
+processes.
 """
 
 from __future__ import annotations
@@ -26,6 +32,8 @@ from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from constraint_aware.bench.faults import FaultyRobot
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
@@ -92,6 +100,65 @@ def one_run(spec: RunSpec) -> dict[str, Any]:
         "peak_force_N": s["peak_force_N"],
         "mean_force_N": s["mean_force_N"],
     }
+
+
+def jaco_without_friction_feedforward(task: str) -> dict[str, Any]:
+    """The probe on the Jaco with OscConfig.friction_compensation = 0 (seed 0)."""
+    from constraint_aware.control.probe import probe_sensor
+    from constraint_aware.control.simulate import build_task
+    from constraint_aware.sim.jaco import JacoSim, OscConfig
+
+    spec = RunSpec(task, seed=0, robot="jaco")
+    config = build_task(spec)
+    sim = JacoSim(config, dataclasses.replace(OscConfig(), friction_compensation=0.0))
+    sim.reset()
+    result = probe_sensor(sim, config.workplane_normal)
+    return {"task": task, "verdict": result.verdict, "arm_stiffness": result.arm_stiffness}
+
+
+def pole_held_still(periods: int = 120) -> list[dict[str, float]]:
+    """The hook hand's pole grasp held at its setpoint, no probe: |F - F(0)| [N] and the pole's
+    travel [mm] once per second."""
+    from constraint_aware.control.simulate import grasped
+
+    _task, sim = grasped(RunSpec("pole-pulling", seed=0))
+    f0, p0 = sim.read_wrench().force, sim.progress()
+    out = []
+    for period in range(1, periods + 1):
+        sim.advance()
+        if period % 10 == 0:
+            change = float(np.linalg.norm(sim.read_wrench().force - f0))
+            travel = (sim.progress() - p0) * 1000
+            out.append({"time_s": period * sim.control_period, "force_change_N": change,
+                        "pole_travel_mm": travel})  # fmt: skip
+    return out
+
+
+class _ProbedFirst:
+    """The simulated robot after a probe of the object itself (no re-grasp), reporting the
+    stiffness that probe measured."""
+
+    def __init__(self, sim: Any) -> None:
+        from constraint_aware.control.probe import STIFFNESS_VERDICTS, probe_sensor
+
+        self._sim = sim
+        result = probe_sensor(sim, sim.task.workplane_normal)
+        self.verdict = result.verdict
+        usable = result.verdict in STIFFNESS_VERDICTS and result.arm_stiffness
+        self.translational_stiffness = (
+            result.arm_stiffness if usable else sim.translational_stiffness
+        )
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._sim, name)
+
+
+def same_grasp_run(spec: RunSpec) -> dict[str, Any]:
+    """`policy` after probing the object itself, from that grasp (no twin, no re-grasp)."""
+    record, _ = run(spec, wrap=_ProbedFirst)
+    s = record.summary()
+    return {"task": spec.task, "seed": spec.seed, "success": record.success,
+            "peak_force_N": s["peak_force_N"], "mean_force_N": s["mean_force_N"]}  # fmt: skip
 
 
 def run_specs(n_seeds: int) -> list[tuple[str, RunSpec]]:
@@ -161,9 +228,25 @@ def main() -> None:
     start = time.perf_counter()
     jobs = [(r, t, f, s) for r in ROBOTS for t in TASKS for f in FAULTS for s in VERDICT_SEEDS]
     specs = run_specs(args.seeds)
+    same_grasp_specs = [
+        s for s in suite_specs(args.seeds, ("policy",), ("drawer-opening", "pole-pulling"))
+    ]
     with ProcessPoolExecutor(args.workers) as pool:
         verdicts = list(pool.map(verdict, jobs, chunksize=4))
         runs = list(pool.map(one_run, [s for _, s in specs], chunksize=4))
+        same_grasp = list(pool.map(same_grasp_run, same_grasp_specs, chunksize=4))
+        no_feedforward = list(pool.map(jaco_without_friction_feedforward, TASKS))
+    held = pole_held_still()
+    same_grasp_cells = {
+        task: {
+            "success": sum(r["success"] for r in rs),
+            "runs": len(rs),
+            "peak_force_median": statistics.median(r["peak_force_N"] for r in rs),
+            "mean_force_median": statistics.median(r["mean_force_N"] for r in rs),
+        }
+        for task in ("drawer-opening", "pole-pulling")
+        for rs in [[r for r in same_grasp if r["task"] == task]]
+    }
     counts = {
         f"{r} / {f}": dict(
             Counter(v["verdict"] for v in verdicts if (v["robot"], v["fault"]) == (r, f))
@@ -188,6 +271,11 @@ def main() -> None:
         "verdict_counts": counts,
         "measured_stiffness_median": stiffness,
         "cells": summarize(runs, [k for k, _ in specs]),
+        "diagnostics": {
+            "jaco_without_friction_feedforward": no_feedforward,
+            "hook_hand_pole_held_still": held,
+            "probe_then_run_same_grasp_hook_hand_suite": same_grasp_cells,
+        },
         "verdicts": verdicts,
         "runs": runs,
         "wall_time_s": time.perf_counter() - start,
@@ -206,6 +294,7 @@ def main() -> None:
                     f"{c['mean_force_median']:.3f}"
                 )
         print(" | ".join(parts))
+    print(json.dumps(out["diagnostics"], indent=1))
     print(f"{out['wall_time_s']:.0f} s -> {args.out}")
 
 

@@ -33,7 +33,7 @@ OUTCOME_MEANINGS: dict[str, str] = {
     "sensor_noise": "the F_d samples were so noisy that the derived dead band reached the "
     "force limit",
     "sensor_convention": "the first moves contradict the wrench convention (flipped sign or "
-    "rotated sensor frame)",
+    "rotated sensor frame), or a setup probe found it wrong (control.probe; no move made)",
     "timeout": "max_steps moves made without success",
     "error": "an exception ended the run (the reason holds its text); the record is attached "
     "to the exception as `run_record`",

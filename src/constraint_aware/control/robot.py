@@ -50,7 +50,7 @@ class Robot(Protocol):
       motion; with the step length it gives the step force k*delta a policy may use, the
       force predicted for the next step and the bound on the target's lead. What matters is
       the stiffness the wrist sensor sees, which an arm's joint-friction feed-forward can
-      raise above its controller's setting (the simulated Jaco: 1.4-2.5 x its 1000 N/m);
+      raise above its controller's setting (the simulated Jaco: 1.7-2.6 x its 1000 N/m);
       `control.probe.probe_sensor` measures it, and `ExecutorConfig.stiffness` overrides the
       report with it;
     - `tracking_time_constant: float` [s], tau: how the tool lags a commanded pose in free
