@@ -238,6 +238,8 @@ def test_bad_config_is_rejected_with_valid_names() -> None:
 def test_a_configured_stiffness_replaces_the_report_and_is_noted() -> None:
     with pytest.raises(InvalidInputError, match=r"stiffness.*\(0, 1e\+06\] \[N/m\]"):
         ExecutorConfig(stiffness=-5.0)
+    with pytest.raises(InvalidInputError, match="stiffness"):
+        ExecutorConfig(stiffness=2e6)
     seen: list[float | None] = []
 
     class Recording(FixedDirection):

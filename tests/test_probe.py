@@ -437,3 +437,42 @@ def test_a_setup_probe_that_raises_still_gives_the_runs_record() -> None:
         run(RunSpec("drawer-opening", probe=True), wrap=Failing)  # type: ignore[arg-type]
     record = info.value.run_record  # type: ignore[attr-defined]
     assert record.outcome == "error" and "setup probe: ConnectionError" in record.reason
+
+
+def test_stale_samples_midway_and_a_hand_that_never_settles_are_named() -> None:
+    @dataclass
+    class StaleLater(Rail):
+        def read_wrench(self) -> Wrench:
+            w = super().read_wrench()
+            return Wrench(np.array([1.0, 2.0, -6.0]), w.torque) if self.reads > 40 else w
+
+    later = probe_sensor(StaleLater(), N)
+    assert later.verdict == "bad_reading" and "stale" in later.reason
+    assert later.pushes  # it measured before the driver went stale
+
+    @dataclass
+    class Creeping(Rail):
+        """The grasped body creeps along the rail, 0.5 mm per period: never at rest."""
+
+        creep: float = 0.0
+
+        def advance(self) -> None:
+            self.creep += 0.0005
+            goal = (float(self.target.position @ U) + self.creep) * U
+            self.position = self.position + 0.5 * (goal - self.position)
+
+    creeping = probe_sensor(Creeping(), N)
+    assert creeping.verdict == "unsteady" and "did not settle" in creeping.reason
+
+
+def test_a_wait_longer_than_the_cap_is_noted() -> None:
+    result = probe_sensor(Lagging(tracking_time_constant=10.0), N)  # 300 periods wanted
+    assert any("max_settle_periods" in n for n in result.notes), result.notes
+
+
+def test_the_probe_force_limit_follows_a_lower_object_limit() -> None:
+    from constraint_aware.control.simulate import RunSpec, _probe_config, build_task
+
+    task = build_task(RunSpec("drawer-opening", overrides=(("force_limit", 10.0),)))
+    assert _probe_config(task).force_limit == 10.0
+    assert _probe_config(build_task(RunSpec("drawer-opening"))).force_limit == 20.0

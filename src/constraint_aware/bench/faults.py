@@ -196,7 +196,7 @@ class FaultyRobot:
         if not self._frozen():
             self.sim.advance()
         self.periods += 1
-        self.true_forces.append(Embodiment.read_wrench(self.sim).force)
+        self.true_forces.append(self.sim.true_wrench().force)
 
     def hold(self) -> None:
         self.holds += 1

@@ -54,8 +54,9 @@ PROBE_VERDICTS: dict[str, str] = {
     "stiffness_mismatch": "the convention holds, but the measured arm stiffness is not the "
     "reported one",
     "inconclusive": "too few pushes met a blocked direction and settled",
-    "unsteady": "the reading at the setpoint changed between pushes (a drifting sensor or a "
-    "creeping grasp): stopped, setpoint restored",
+    "unsteady": "the reading at the setpoint changed between pushes, or the hand did not "
+    "settle back there (a drifting sensor, a creeping grasp, the arm's friction hysteresis): "
+    "stopped, setpoint restored",
     "not_following": "the hand neither moved nor met a force on any push: the arm does not "
     "follow its setpoint",
     "force_limit": "a push raised |dF| above the force limit: stopped, setpoint restored",
@@ -194,16 +195,22 @@ def probe_sensor(
     if workplane_normal is not None:
         normal = np.asarray(check_unit_vector("workplane_normal", workplane_normal))
     result = ProbeResult()
-    result.reported_stiffness, note = reported_stiffness(robot)
-    tau, tau_note = reported_time_constant(robot)
-    result.notes.extend(n for n in (note, tau_note) if n)
-    reader = _Reader(robot, cfg, tau)
     home: Pose | None = None
     try:
+        result.reported_stiffness, note = reported_stiffness(robot)
+        tau, tau_note = reported_time_constant(robot)
+        result.notes.extend(n for n in (note, tau_note) if n)
+        reader = _Reader(robot, cfg, tau, result)
         start = robot.commanded_pose()
         _check_pose(start, "commanded pose")
         home = start
-        base_force, base_stretch, base_pose = reader.settle(None)
+        base_force, base_stretch, base_pose, rested = reader.settle_push(None)
+        if not rested:
+            raise _Stop(
+                "unsteady",
+                f"the hand did not settle at the setpoint within {cfg.max_settle_periods} "
+                "periods before the first push",
+            )
         result.force_offset = base_force.tolist()
         for u in push_directions(cfg.directions, normal):
             robot.command_pose(Pose(home.position + cfg.amplitude * u, home.orientation))
@@ -213,7 +220,13 @@ def probe_sensor(
                       normal, cfg)
             )  # fmt: skip
             robot.command_pose(home)
-            after, after_stretch, after_pose = reader.settle(base_force)
+            after, after_stretch, after_pose, back = reader.settle_push(base_force)
+            if not back:
+                raise _Stop(
+                    "unsteady",
+                    f"the hand did not settle back at the setpoint after push "
+                    f"{len(result.pushes)} within {cfg.max_settle_periods} periods",
+                )
             drift = float(np.linalg.norm(_in_plane(after - base_force, normal)))
             if drift > DRIFT_SHARE * cfg.min_force:
                 raise _Stop(
@@ -229,11 +242,11 @@ def probe_sensor(
     except BaseException as exc:
         result.verdict = "error"
         result.reason = f"{type(exc).__name__}: {exc}"
-        _restore(robot, home, result, wait=False)
-        try:
+        try:  # first: a second Ctrl-C during the restore must not lose it
             exc.probe_result = result  # type: ignore[attr-defined]
         except AttributeError:
             result.notes.append("could not attach the result to the exception")
+        _restore(robot, home, result, wait=False)
         raise
     # completed: the setpoint is back where it was, so the hand holds the grasp as before the
     # probe (hold() would move the setpoint onto the measured pose and release the preload)
@@ -245,17 +258,22 @@ class _Reader:
     """Settles and reads, checking every sample: finite, not stale, |F - base| within the
     force limit once a base exists."""
 
-    def __init__(self, robot: Robot, cfg: ProbeConfig, tau: float | None) -> None:
+    def __init__(
+        self, robot: Robot, cfg: ProbeConfig, tau: float | None, result: ProbeResult
+    ) -> None:
         self.robot = robot
         self.cfg = cfg
         waits = 0 if tau is None else math.ceil(SETTLE_TIME_CONSTANTS * tau / robot.control_period)
-        self.min_periods = min(max(MIN_SETTLE_PERIODS, waits), cfg.max_settle_periods)
-        self._last: FloatArray | None = None
+        self.min_periods = max(MIN_SETTLE_PERIODS, waits)
+        if self.min_periods > cfg.max_settle_periods:
+            result.notes.append(
+                f"waiting {cfg.max_settle_periods} periods per push (max_settle_periods), less "
+                f"than {SETTLE_TIME_CONSTANTS:g} tracking time constants ({self.min_periods})"
+            )
+            self.min_periods = cfg.max_settle_periods
+        self._period = 0  # control periods advanced
+        self._last: tuple[int, FloatArray] | None = None  # (period, force and torque)
         self._repeats = 0
-
-    def settle(self, base: FloatArray | None) -> tuple[FloatArray, FloatArray, Pose]:
-        force, stretch, pose, _ = self.settle_push(base)
-        return force, stretch, pose
 
     def settle_push(self, base: FloatArray | None) -> tuple[FloatArray, FloatArray, Pose, bool]:
         """Advance until the hand moves less than settle_tolerance x amplitude in a period
@@ -265,7 +283,7 @@ class _Reader:
         last = self._pose()
         settled = False
         for period in range(1, cfg.max_settle_periods + 1):
-            self.robot.advance()
+            self._advance()
             pose = self._pose()
             self._force(base)
             moved = float(np.linalg.norm(pose.position - last.position))
@@ -276,12 +294,16 @@ class _Reader:
         forces = []
         for i in range(cfg.samples):
             if i:
-                self.robot.advance()
+                self._advance()
             forces.append(self._force(base))
         pose = self._pose()
         setpoint = self.robot.commanded_pose()
         _check_pose(setpoint, "commanded pose")
         return np.mean(forces, axis=0), setpoint.position - pose.position, pose, settled
+
+    def _advance(self) -> None:
+        self.robot.advance()
+        self._period += 1
 
     def _pose(self) -> Pose:
         pose = self.robot.read_pose()
@@ -289,17 +311,22 @@ class _Reader:
         return pose
 
     def _force(self, base: FloatArray | None) -> FloatArray:
-        raw = self.robot.read_wrench().force
+        wrench = self.robot.read_wrench()
+        raw = wrench.force
         f = np.asarray(raw, dtype=float)
         if f.shape != (3,) or not np.all(np.isfinite(f)):
             raise _Stop("bad_reading", f"wrench force {raw!r} is not 3 finite numbers")
-        if self._last is not None and np.array_equal(f, self._last):
-            self._repeats += 1
-            if self._repeats >= STALE_SAMPLES - 1:
-                raise _Stop("bad_reading", f"{STALE_SAMPLES} identical wrench samples (stale)")
-        else:
-            self._repeats = 0
-        self._last = f
+        # stale: the same force and torque in consecutive periods (a second read within one
+        # period may repeat; a noise-free simulator at rest repeats too, and is stopped)
+        sample = np.concatenate([f, np.asarray(wrench.torque, dtype=float).ravel()])
+        if self._last is not None and self._last[0] != self._period:
+            if np.array_equal(sample, self._last[1]):
+                self._repeats += 1
+                if self._repeats >= STALE_SAMPLES - 1:
+                    raise _Stop("bad_reading", f"{STALE_SAMPLES} identical wrench samples (stale)")
+            else:
+                self._repeats = 0
+        self._last = (self._period, sample)
         if base is not None:
             change = float(np.linalg.norm(f - base))
             if change > self.cfg.force_limit:

@@ -270,6 +270,12 @@ class SimulatedRobot(ABC):
         self._noise = float(noise)
         self._bias = np.zeros(3) if bias is None else np.asarray(bias, dtype=float)
 
+    def true_wrench(self) -> Wrench:
+        """The wrist wrench averaged over the last 20 ms, without the sensor's noise and bias
+        and without drawing from its noise generator (ground truth for fault studies)."""
+        w = self._filtered
+        return Wrench(force=w[:3].copy(), torque=w[3:].copy())
+
     def read_wrench(self) -> Wrench:
         """The wrist wrench averaged over the last 20 ms (a sensor's low-pass filter)."""
         w = self._filtered
