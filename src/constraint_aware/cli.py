@@ -63,6 +63,21 @@ def print_error(message: str) -> None:
     err_console.print(Text.assemble(("error: ", "bold red"), message), soft_wrap=True)
 
 
+def report_partial(exc: BaseException, attr: str, path: str | None, what: str) -> int:
+    """Inside `except`: write the result attached to `exc` as `attr` (a record or a probe
+    result) to `path` as JSON, then re-raise a Ctrl-C (or an exception with nothing attached),
+    or report the exception: exit 1."""
+    partial = getattr(exc, attr, None)
+    if partial is None:
+        raise exc
+    if path:
+        write_json(partial.to_dict(), path)
+    if not isinstance(exc, Exception):
+        raise exc
+    print_error(f"{what} raised {type(exc).__name__}: {exc}")
+    return EXIT_FAILED
+
+
 def human(args: argparse.Namespace) -> Console:
     """Where human-readable lines go: stderr when the JSON result goes to stdout."""
     return err_console if getattr(args, "json", None) == "-" else console
@@ -545,15 +560,7 @@ def cmd_lfo(args: argparse.Namespace) -> int:
                 skill, controller=args.controller, seed=args.seed, policy=policy, robot=args.robot
             )
         except BaseException as exc:  # write the attached record, as cap run does
-            partial = getattr(exc, "run_record", None)
-            if partial is None:
-                raise
-            if args.record:
-                write_json(partial.to_dict(), args.record)
-            if not isinstance(exc, Exception):
-                raise
-            print_error(f"the execution raised {type(exc).__name__}: {exc}")
-            return EXIT_FAILED
+            return report_partial(exc, "run_record", args.record, "the execution")
         out["execution"] = {**info, **record.summary()}
         _print_outcome(
             out_console,
@@ -775,15 +782,7 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
     try:
         result, _sim = probe(spec, config, wrap)
     except BaseException as exc:  # write what the probe has, then report (Ctrl-C: 130)
-        partial = getattr(exc, "probe_result", None)
-        if partial is None:
-            raise
-        if args.json:
-            write_json(partial.to_dict(), args.json)
-        if not isinstance(exc, Exception):
-            raise
-        print_error(f"the probe raised {type(exc).__name__}: {exc}")
-        return EXIT_FAILED
+        return report_partial(exc, "probe_result", args.json, "the probe")
     out = human(args)
     amplitude = (config or ProbeConfig()).amplitude * 1000
     table = Table(title=Text(f"{args.task} / {args.robot}: pushes of {amplitude:g} mm"))
