@@ -413,6 +413,9 @@ def test_check_sensor_exit_codes_and_json(tmp_path: Path) -> None:
     assert data["verdict"] == "flipped_sign" and data["meaning"]
     assert len(data["pushes"]) == 8
     assert main(["check-sensor", "drawer-opening", "--amplitude", "0.5"]) == 2  # named range
+    assert main(["check-sensor", "drawer-opening", "--plot", str(tmp_path / "p.txt")]) == 2
+    assert main(["check-sensor", "drawer-opening", "--plot", str(tmp_path / "p.png")]) == 0
+    assert (tmp_path / "p.png").stat().st_size > 10_000
     with pytest.raises(SystemExit) as refused:  # timed by executor moves: not a probe fault
         main(["check-sensor", "drawer-opening", "--fault", "nan_wrench"])
     assert refused.value.code == 2

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -476,3 +477,12 @@ def test_the_probe_force_limit_follows_a_lower_object_limit() -> None:
     task = build_task(RunSpec("drawer-opening", overrides=(("force_limit", 10.0),)))
     assert _probe_config(task).force_limit == 10.0
     assert _probe_config(build_task(RunSpec("drawer-opening"))).force_limit == 20.0
+
+
+def test_the_probe_plot_is_written(tmp_path: Path) -> None:
+    from constraint_aware.control.plots import plot_probe
+
+    out = plot_probe(probe_sensor(Rail(), N), tmp_path / "probe.png")
+    assert out.stat().st_size > 10_000
+    unplanar = plot_probe(probe_sensor(Rail(), None), tmp_path / "probe3d.png")  # no plane
+    assert unplanar.exists()

@@ -760,6 +760,9 @@ def _check_sensor_parser(p: argparse.ArgumentParser) -> None:
     )
     specs = add_dataclass_flags(p.add_argument_group("probe"), ProbeConfig)
     p.add_argument("--json", metavar="PATH", help="the probe's result as JSON ('-' = stdout)")
+    p.add_argument(
+        "--plot", metavar="PATH", help="each push's force change and stiffness (.png, .svg...)"
+    )
     p.set_defaults(func=cmd_check_sensor, probe_specs=specs)
 
 
@@ -769,6 +772,7 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
     from constraint_aware.control.simulate import RunSpec, probe
 
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    check_output(args.plot, "--plot", plot_suffixes())
     spec = RunSpec(task=args.task, seed=args.seed, robot=args.robot)
     chosen = collect(args, args.probe_specs)
     config = ProbeConfig(**chosen) if chosen else None
@@ -811,6 +815,10 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
         out.print(Text(f"note: {note}"), soft_wrap=True)
     if args.json:
         write_json(result.to_dict(), args.json)
+    if args.plot:
+        from constraint_aware.control.plots import plot_probe
+
+        plot_probe(result, args.plot)
     return EXIT_OK if ok else EXIT_FAILED
 
 

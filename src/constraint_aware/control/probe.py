@@ -145,6 +145,7 @@ class ProbeResult:
     median_cos: float | None = None
     arm_stiffness: float | None = None  # [N/m] median over judged pushes
     reported_stiffness: float | None = None  # [N/m] the robot's translational_stiffness
+    workplane_normal: list[float] | None = None  # (3,) the plane pushed in; None: 3-D
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -194,7 +195,7 @@ def probe_sensor(
     normal = None
     if workplane_normal is not None:
         normal = np.asarray(check_unit_vector("workplane_normal", workplane_normal))
-    result = ProbeResult()
+    result = ProbeResult(workplane_normal=None if normal is None else normal.tolist())
     home: Pose | None = None
     try:
         result.reported_stiffness, note = reported_stiffness(robot)
