@@ -16,7 +16,8 @@ difference (probe minus shipped). Part 3, diagnostics behind the README's explan
 (`OscConfig.friction_compensation = 0`); the hook hand's pole grasp held still for 12 s, no
 probe (the reading and the pole's travel per second); and probing the object and then
 running from that same grasp, without a re-grasp (drawer and pole suites, hook hand), which
-is why `RunSpec.probe` probes a twin. Runs are independent, spread over `--workers`
+is why `RunSpec.probe` probes a twin; and the force a grasp meets against the push's size,
+1.5-8 mm (play in the grasp, a force bias in the arm). Runs are independent, spread over `--workers`
 processes.
 """
 
@@ -161,6 +162,30 @@ def same_grasp_run(spec: RunSpec) -> dict[str, Any]:
             "peak_force_N": s["peak_force_N"], "mean_force_N": s["mean_force_N"]}  # fmt: skip
 
 
+#: Part 3: push sizes [m] for the force each grasp meets against the push's size (seed 0).
+AMPLITUDES = (0.0015, 0.002, 0.003, 0.004, 0.006, 0.008)
+AMPLITUDE_CASES = (
+    ("hook-hand", "drawer-opening"),
+    ("hook-hand", "door-opening"),
+    ("hook-hand", "handle-rotating"),
+    ("jaco", "drawer-opening"),
+    ("jaco", "door-opening"),
+)
+
+
+def force_by_amplitude(job: tuple[str, str, float]) -> dict[str, Any]:
+    """The largest force a push met along itself, -dF . u [N], at one push size: a grasp with
+    play meets none below the play; an arm with a force bias meets it at any size."""
+    from constraint_aware.control.probe import ProbeConfig
+
+    robot, task, amplitude = job
+    config = ProbeConfig(amplitude=amplitude, force_limit=40.0)
+    result, _ = probe(RunSpec(task, seed=0, robot=robot), config)
+    met = [-float(np.dot(p.force_change, p.direction)) for p in result.pushes]
+    return {"robot": robot, "task": task, "amplitude_m": amplitude, "verdict": result.verdict,
+            "largest_push_force_N": max(met, default=None)}  # fmt: skip
+
+
 def run_specs(n_seeds: int) -> list[tuple[str, RunSpec]]:
     """(cell kind, spec) for part 2."""
     out: list[tuple[str, RunSpec]] = []
@@ -236,6 +261,8 @@ def main() -> None:
         runs = list(pool.map(one_run, [s for _, s in specs], chunksize=4))
         same_grasp = list(pool.map(same_grasp_run, same_grasp_specs, chunksize=4))
         no_feedforward = list(pool.map(jaco_without_friction_feedforward, TASKS))
+        amplitude_jobs = [(r, t, a) for r, t in AMPLITUDE_CASES for a in AMPLITUDES]
+        by_amplitude = list(pool.map(force_by_amplitude, amplitude_jobs))
     held = pole_held_still()
     same_grasp_cells = {
         task: {
@@ -275,6 +302,7 @@ def main() -> None:
             "jaco_without_friction_feedforward": no_feedforward,
             "hook_hand_pole_held_still": held,
             "probe_then_run_same_grasp_hook_hand_suite": same_grasp_cells,
+            "force_by_push_size": by_amplitude,
         },
         "verdicts": verdicts,
         "runs": runs,
