@@ -17,8 +17,8 @@ difference (probe minus shipped). Part 3, diagnostics behind the README's explan
 probe (the reading and the pole's travel per second); and probing the object and then
 running from that same grasp, without a re-grasp (drawer and pole suites, hook hand), which
 is why `RunSpec.probe` probes a twin; and the force a grasp meets against the push's size,
-1.5-8 mm (play in the grasp, a force bias in the arm). Runs are independent, spread over `--workers`
-processes.
+1.5-8 mm (play in the grasp, a force bias in the arm). Runs are independent, spread over
+`--workers` processes.
 """
 
 from __future__ import annotations
