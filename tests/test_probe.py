@@ -42,6 +42,7 @@ class Rail:
     free: bool = False
     rotation: Rotation = field(default_factory=Rotation.identity)
     sign: float = 1.0  # -1: the driver reports the wrench with the opposite sign
+    play: float = 0.0  # [m] the grasp moves freely this far across the rail either way
     nan_after: int | None = None
     raise_after: int | None = None
     position: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -81,6 +82,10 @@ class Rail:
 
     def advance(self) -> None:
         goal = self.target.position if self.free else float(self.target.position @ U) * U
+        if not self.free and self.play:  # across the rail, free within the play
+            across = self.target.position - goal
+            size = float(np.linalg.norm(across))
+            goal = goal + across * (min(size, self.play) / size if size > 0 else 0.0)
         self.position = self.position + 0.5 * (goal - self.position)
 
     def hold(self) -> None:
@@ -486,3 +491,15 @@ def test_the_probe_plot_is_written(tmp_path: Path) -> None:
     assert out.stat().st_size > 10_000
     unplanar = plot_probe(probe_sensor(Rail(), None), tmp_path / "probe3d.png")  # no plane
     assert unplanar.exists()
+
+
+def test_the_give_measures_the_play_of_the_grasp() -> None:
+    rigid = probe_sensor(Rail(), N)
+    assert rigid.give == pytest.approx(0.0, abs=2e-5)
+    loose = probe_sensor(Rail(play=0.001), N)
+    assert loose.verdict == "consistent", loose.reason
+    assert loose.give == pytest.approx(0.001, abs=5e-5)  # the play
+    assert loose.arm_stiffness == pytest.approx(2000.0, rel=0.02)  # the spring is the same
+    across = [p for p in loose.pushes if abs(float(np.dot(p.direction, U))) < 1e-9]
+    for p in across:  # 3 mm pushes, 1 mm of them free: k (a - p) / a
+        assert p.push_stiffness == pytest.approx(2000.0 * 2 / 3, rel=0.02)

@@ -790,7 +790,8 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
     out = human(args)
     amplitude = (config or ProbeConfig()).amplitude * 1000
     table = Table(title=Text(f"{args.task} / {args.robot}: pushes of {amplitude:g} mm"))
-    for column in ("direction", "|dF| [N]", "cos(dF, stretch)", "arm [N/m]", "push [N/m]"):
+    columns = ("direction", "|dF| [N]", "cos(dF, stretch)", "arm [N/m]", "push [N/m]", "give [mm]")
+    for column in columns:
         table.add_column(column, justify="right")
     for push in result.pushes:
         df = math.hypot(*push.force_change)
@@ -800,6 +801,7 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
             "-" if push.cos is None else f"{push.cos:+.2f}",
             "-" if push.arm_stiffness is None else f"{push.arm_stiffness:.0f}",
             f"{push.push_stiffness:.0f}",
+            "-" if push.give is None else f"{push.give * 1000:.2f}",
         )
     out.print(table)
     ok = result.verdict in STIFFNESS_VERDICTS  # the convention holds

@@ -132,6 +132,8 @@ class ProbePush:
     cos: float | None  # cos(dF, d stretch) when judged; -1 for the Robot convention
     arm_stiffness: float | None  # [N/m] |dF| / |d stretch| when judged
     push_stiffness: float  # [N/m] -dF . direction / amplitude: arm, grasp and object in series
+    give: float | None  # [m] when judged: how far the hand moved against the force it met,
+    # i.e. the play in the grasp plus the grasp's and the object's own compliance
 
 
 @dataclass
@@ -144,6 +146,7 @@ class ProbeResult:
     force_offset: list[float] = field(default_factory=list)  # [N] the first setpoint reading
     median_cos: float | None = None
     arm_stiffness: float | None = None  # [N/m] median over judged pushes
+    give: float | None = None  # [m] median over judged pushes (ProbePush.give)
     reported_stiffness: float | None = None  # [N/m] the robot's translational_stiffness
     workplane_normal: list[float] | None = None  # (3,) the plane pushed in; None: 3-D
     notes: list[str] = field(default_factory=list)
@@ -358,16 +361,18 @@ def _push(
     f, s = float(np.linalg.norm(d_force)), float(np.linalg.norm(d_stretch))
     # a stretch below the settle tolerance has no direction to compare
     judged = settled and f >= cfg.min_force and s >= cfg.settle_tolerance * cfg.amplitude
+    travel = _in_plane(pose.position - base_pose.position, normal)
     return ProbePush(
         direction=u.tolist(),
         force_change=d_force.tolist(),
         stretch_change=d_stretch.tolist(),
-        moved=float(np.linalg.norm(_in_plane(pose.position - base_pose.position, normal))),
+        moved=float(np.linalg.norm(travel)),
         settled=settled,
         judged=judged,
         cos=float(d_force @ d_stretch) / (f * s) if judged else None,
         arm_stiffness=f / s if judged else None,
         push_stiffness=-float(d_force @ u) / cfg.amplitude,
+        give=-float(travel @ d_force) / f if judged else None,
     )
 
 
@@ -401,6 +406,7 @@ def _verdict(result: ProbeResult, cfg: ProbeConfig) -> None:
     cos = float(np.median([p.cos for p in judged if p.cos is not None]))
     stiffness = float(np.median([p.arm_stiffness for p in judged if p.arm_stiffness]))
     result.median_cos, result.arm_stiffness = cos, stiffness
+    result.give = float(np.median([p.give for p in judged if p.give is not None]))
     counted = f"median cos(dF, stretch) {cos:+.2f} over {len(judged)} pushes"
     if cos >= PROBE_CONVENTION_COS:
         result.verdict, result.reason = "flipped_sign", counted
