@@ -45,6 +45,11 @@ def unit(v: FloatArray, eps: float = 1e-12) -> FloatArray:
     return np.where(norm > eps, v / safe, 0.0)
 
 
+def in_plane(v: FloatArray, normal: FloatArray | None) -> FloatArray:
+    """v (3,) less its component along the unit `normal` (3,); v itself without a normal."""
+    return v if normal is None else v - float(v @ normal) * normal
+
+
 def angle_deg(a: FloatArray, b: FloatArray) -> FloatArray | float:
     """Angle [deg] between vectors along the last axis (robust near 0 and 180 deg)."""
     cross = np.linalg.norm(np.cross(a, b), axis=-1)

@@ -47,6 +47,7 @@ from constraint_aware.control.robot import (
     TaskMonitor,
     reported_stiffness,
     reported_time_constant,
+    request_hold,
 )
 from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import MIN_THRESHOLD, noise_std, threshold_from_noise
@@ -59,7 +60,7 @@ from constraint_aware.errors import (
     check_unit_vector,
     check_vector,
 )
-from constraint_aware.geometry import FloatArray, angle_deg, as_vector, unit
+from constraint_aware.geometry import FloatArray, angle_deg, as_vector, in_plane, unit
 from constraint_aware.spatial import Pose, Wrench
 
 ConstraintType = Literal["prismatic", "revolute"]
@@ -822,25 +823,18 @@ class Executor:
                 )
         return why
 
-    @staticmethod
-    def _in_plane(st: _Run, v: FloatArray) -> FloatArray:
-        """v less its component along the workplane normal (v itself without a workplane)."""
-        if st.normal is None:
-            return v
-        return v - float(v @ st.normal) * st.normal
-
     def _self_check_verdict(self, st: _Run, force: FloatArray, pose: Pose) -> str:
         # the workplane's components of F and of the deflection only (see SELF_CHECK_MIN_FORCE)
-        force = self._in_plane(st, force)
+        force = in_plane(force, st.normal)
         magnitude = float(np.linalg.norm(force))
         if magnitude < self._min_check_force(st):
             return ""
         st.check_along.append(float(force @ st.direction) / magnitude)
-        deflection = self._in_plane(st, self._deflection(st, pose))
+        deflection = in_plane(self._deflection(st, pose), st.normal)
         size = float(np.linalg.norm(deflection))
         if size > self._min_check_deflection(st):
             st.check_deflection.append(float(force @ deflection) / (magnitude * size))
-            half = self._in_plane(st, self._deflection(st, pose, CONFIRM_LAG_SHARE))
+            half = in_plane(self._deflection(st, pose, CONFIRM_LAG_SHARE), st.normal)
             half_size = max(float(np.linalg.norm(half)), 1e-12)
             st.check_confirm.append(float(force @ half) / (magnitude * half_size))
         if len(st.check_deflection) >= SELF_CHECK_MIN_SAMPLES:
@@ -929,13 +923,9 @@ class Executor:
         return st.record
 
     def _hold(self, st: _Run) -> None:
-        hold = getattr(self.robot, "hold", None)
-        if hold is None:
-            return
-        try:
-            hold()
-        except Exception as exc:  # the record must still be returned
-            st.record.notes.append(f"robot.hold() failed: {exc!r}")
+        failed = request_hold(self.robot)
+        if failed:  # the record must still be returned
+            st.record.notes.append(failed)
 
     def _fail(self, exc: BaseException) -> None:
         """Finish the record with outcome "error", hold, and attach the record to `exc`."""

@@ -41,9 +41,14 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.control.executor import SELF_CHECK_MIN_FORCE
-from constraint_aware.control.robot import Robot, reported_stiffness, reported_time_constant
+from constraint_aware.control.robot import (
+    Robot,
+    reported_stiffness,
+    reported_time_constant,
+    request_hold,
+)
 from constraint_aware.errors import ConfigError, check_int, check_number, check_unit_vector
-from constraint_aware.geometry import FloatArray
+from constraint_aware.geometry import FloatArray, in_plane
 from constraint_aware.spatial import Pose
 
 #: Every verdict, with what it means.
@@ -231,7 +236,7 @@ def probe_sensor(
                     f"the hand did not settle back at the setpoint after push "
                     f"{len(result.pushes)} within {cfg.max_settle_periods} periods",
                 )
-            drift = float(np.linalg.norm(_in_plane(after - base_force, normal)))
+            drift = float(np.linalg.norm(in_plane(after - base_force, normal)))
             if drift > DRIFT_SHARE * cfg.min_force:
                 raise _Stop(
                     "unsteady",
@@ -343,10 +348,6 @@ def _check_pose(pose: Pose, what: str) -> None:
         raise _Stop("bad_reading", f"{what} {pose.position!r} is not finite")
 
 
-def _in_plane(v: FloatArray, normal: FloatArray | None) -> FloatArray:
-    return v if normal is None else v - float(v @ normal) * normal
-
-
 def _push(
     u: FloatArray,
     d_force: FloatArray,
@@ -357,11 +358,11 @@ def _push(
     normal: FloatArray | None,
     cfg: ProbeConfig,
 ) -> ProbePush:
-    d_force, d_stretch = _in_plane(d_force, normal), _in_plane(d_stretch, normal)
+    d_force, d_stretch = in_plane(d_force, normal), in_plane(d_stretch, normal)
     f, s = float(np.linalg.norm(d_force)), float(np.linalg.norm(d_stretch))
     # a stretch below the settle tolerance has no direction to compare
     judged = settled and f >= cfg.min_force and s >= cfg.settle_tolerance * cfg.amplitude
-    travel = _in_plane(pose.position - base_pose.position, normal)
+    travel = in_plane(pose.position - base_pose.position, normal)
     return ProbePush(
         direction=u.tolist(),
         force_change=d_force.tolist(),
@@ -446,10 +447,6 @@ def _restore(robot: Robot, home: Pose | None, result: ProbeResult, wait: bool = 
                 robot.advance()
     except Exception as exc:  # the result must still be returned
         result.notes.append(f"restoring the setpoint failed: {exc!r}")
-    hold = getattr(robot, "hold", None)
-    if hold is None:
-        return
-    try:
-        hold()
-    except Exception as exc:
-        result.notes.append(f"robot.hold() failed: {exc!r}")
+    failed = request_hold(robot)
+    if failed:
+        result.notes.append(failed)

@@ -21,6 +21,7 @@ __all__ = [
     "Wrench",
     "reported_stiffness",
     "reported_time_constant",
+    "request_hold",
 ]
 
 
@@ -130,6 +131,19 @@ class TaskMonitor(Protocol):
         ...
 
     def handle_position(self) -> FloatArray: ...
+
+
+def request_hold(robot: object) -> str:
+    """Tell the robot to hold (its optional `hold()`); "" when it held or has no `hold`, else
+    a note naming the failure (a stop must still return its record)."""
+    hold = getattr(robot, "hold", None)
+    if hold is None:
+        return ""
+    try:
+        hold()
+    except Exception as exc:
+        return f"robot.hold() failed: {exc!r}"
+    return ""
 
 
 def reported_time_constant(robot: object) -> tuple[float | None, str]:
