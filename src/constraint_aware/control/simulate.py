@@ -301,8 +301,9 @@ def run(
 
 
 def _attach_setup_record(exc: BaseException, spec: RunSpec) -> None:
-    """A record for a run whose setup probe raised: outcome "error", the probe's result in
-    its notes, attached to `exc` as `run_record` (as the executor does for a run)."""
+    """A record for a run whose setup probe raised: outcome "error", a note with how many
+    pushes the probe made, attached to `exc` as `run_record` (as the executor does for a
+    run)."""
     record = RunRecord(
         {"task": spec.task, "controller": spec.controller, "seed": spec.seed,
          "robot": spec.robot, "probe": "error"},

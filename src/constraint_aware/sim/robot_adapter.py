@@ -277,15 +277,15 @@ class SimulatedRobot(ABC):
         return Wrench(force=w[:3].copy(), torque=w[3:].copy())
 
     def read_wrench(self) -> Wrench:
-        """The wrist wrench averaged over the last 20 ms (a sensor's low-pass filter)."""
-        w = self._filtered
-        force, torque = w[:3].copy(), w[3:].copy()
+        """The wrist wrench averaged over the last 20 ms (a sensor's low-pass filter), with the
+        sensor's noise and bias (`set_sensor_noise`)."""
+        true = self.true_wrench()
         rng = getattr(self, "_noise_rng", None)
         if rng is None or (self._noise == 0.0 and not np.any(self._bias)):
-            return Wrench(force=force, torque=torque)
+            return true
         return Wrench(
-            force=force + self._bias + self._noise * rng.normal(size=3),
-            torque=torque + 0.1 * self._noise * rng.normal(size=3),
+            force=true.force + self._bias + self._noise * rng.normal(size=3),
+            torque=true.torque + 0.1 * self._noise * rng.normal(size=3),
         )
 
     def read_pose(self) -> Pose:
