@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 import pytest
@@ -32,6 +32,37 @@ class TrueDirection(FixedDirection):
 
     def next_direction(self, inp: ControlInput) -> np.ndarray:
         return self.sim.admissible_direction()
+
+
+class RequiredOnly:
+    """Forwards only the Robot protocol's required members to `inner` (no grasp_contact, hold,
+    translational_stiffness or tracking_time_constant): a robot with nothing optional."""
+
+    control_period = 0.1
+
+    def __init__(self, inner: Any) -> None:
+        self._inner = inner
+
+    def read_wrench(self) -> Any:
+        return self._inner.read_wrench()
+
+    def read_pose(self) -> Any:
+        return self._inner.read_pose()
+
+    def commanded_pose(self) -> Any:
+        return self._inner.commanded_pose()
+
+    def command_pose(self, pose: Any) -> None:
+        self._inner.command_pose(pose)
+
+    def advance(self) -> None:
+        self._inner.advance()
+
+
+@pytest.fixture
+def required_only() -> type[RequiredOnly]:
+    """The RequiredOnly wrapper class (a robot without optional members)."""
+    return RequiredOnly
 
 
 @pytest.fixture

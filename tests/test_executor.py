@@ -8,6 +8,7 @@ import subprocess
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -331,36 +332,14 @@ def test_every_stop_calls_hold() -> None:
     assert rec.success and robot.holds == 1
 
 
-class Minimal:
-    """A robot with only the required members (no grasp_contact, hold, stiffness)."""
-
-    control_period = 0.1
-
-    def __init__(self) -> None:
-        self.guide = FakeGuide()
-
-    def read_wrench(self) -> Wrench:
-        return self.guide.read_wrench()
-
-    def read_pose(self) -> Pose:
-        return self.guide.read_pose()
-
-    def commanded_pose(self) -> Pose:
-        return self.guide.commanded_pose()
-
-    def command_pose(self, pose: Pose) -> None:
-        self.guide.command_pose(pose)
-
-    def advance(self) -> None:
-        self.guide.advance()
-
-
-def test_goal_travel_stops_a_robot_without_monitor_or_optional_members() -> None:
-    robot = Minimal()
+def test_goal_travel_stops_a_robot_without_monitor_or_optional_members(
+    required_only: type[Any],
+) -> None:
+    robot = required_only(FakeGuide())  # only the required members
     # without contact sensing the executor judges contact from |F|, which on this frictionless
     # fake is 0 once aligned: switch that judgement off
     cfg = ExecutorConfig(goal_travel=0.1, lost_contact_force=0.0)
-    rec = Executor(robot, ProjectionController(), cfg).run(d0(30))  # type: ignore[arg-type]
+    rec = Executor(robot, ProjectionController(), cfg).run(d0(30))
     assert rec.outcome == "success" and rec.reason.startswith("goal: travel")
     assert rec.goal is not None and rec.goal["reached"] >= 0.1
     assert math.isnan(rec.progress)  # no monitor: no ground truth in the record

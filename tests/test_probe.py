@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -301,31 +302,8 @@ def test_ctrl_c_restores_holds_and_keeps_the_result() -> None:
     assert np.allclose(robot.commands[-1].position, 0.0) and robot.holds == 1
 
 
-def test_a_robot_without_optional_members_is_probed() -> None:
-    class Bare:
-        """Only the Robot protocol's required members."""
-
-        control_period = 0.1
-
-        def __init__(self) -> None:
-            self.rail = Rail(reported=None)
-
-        def read_wrench(self) -> Wrench:
-            return self.rail.read_wrench()
-
-        def read_pose(self) -> Pose:
-            return self.rail.read_pose()
-
-        def commanded_pose(self) -> Pose:
-            return self.rail.commanded_pose()
-
-        def command_pose(self, pose: Pose) -> None:
-            self.rail.command_pose(pose)
-
-        def advance(self) -> None:
-            self.rail.advance()
-
-    result = probe_sensor(Bare(), N)  # type: ignore[arg-type]
+def test_a_robot_without_optional_members_is_probed(required_only: type[Any]) -> None:
+    result = probe_sensor(required_only(Rail(reported=None)), N)
     assert result.verdict == "consistent" and result.reported_stiffness is None
 
 
