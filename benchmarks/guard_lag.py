@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.bench.faults import hook_hand_time_constant
+from constraint_aware.bench.faults import Reporting, hook_hand_time_constant
 from constraint_aware.bench.sweep import PAPER_OFFSETS
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -47,15 +47,11 @@ SETTINGS: dict[str, float | None] = {
 }
 
 
-class WithLag:
+class WithLag(Reporting):
     """Forwards the Robot protocol to the simulator and reports `tracking_time_constant`."""
 
     def __init__(self, sim: Any, tau: float) -> None:
-        self._sim = sim
-        self.tracking_time_constant = tau
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._sim, name)
+        super().__init__(sim, tracking_time_constant=tau)
 
 
 def one_run(

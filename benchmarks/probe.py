@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.bench.faults import FaultyRobot
+from constraint_aware.bench.faults import FaultyRobot, Reporting
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.simulate import RunSpec, probe, run
 from constraint_aware.sim.tasks import TASKS
@@ -48,22 +48,16 @@ VERDICT_SEEDS = range(5)
 PAPER_SEEDS = range(10)
 
 
-class HalfStiffness:
+def half_stiffness(sim: Any) -> Reporting:
     """The simulated robot, reporting half its translational stiffness."""
-
-    def __init__(self, sim: Any) -> None:
-        self._sim = sim
-        self.translational_stiffness = 0.5 * sim.translational_stiffness
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._sim, name)
+    return Reporting(sim, translational_stiffness=0.5 * sim.translational_stiffness)
 
 
 def verdict(job: tuple[str, str, str, int]) -> dict[str, Any]:
     robot, task, fault, seed = job
     wrap: Any = None
     if fault == "stiffness_half":
-        wrap = HalfStiffness
+        wrap = half_stiffness
     elif fault != "none":
 
         def wrap(sim: Any) -> FaultyRobot:
@@ -135,28 +129,19 @@ def pole_held_still(periods: int = 120) -> list[dict[str, float]]:
     return out
 
 
-class _ProbedFirst:
+def probed_first(sim: Any) -> Reporting:
     """The simulated robot after a probe of the object itself (no re-grasp), reporting the
-    stiffness that probe measured."""
+    stiffness that probe measured (its own report when the probe measured none)."""
+    from constraint_aware.control.probe import STIFFNESS_VERDICTS, probe_sensor
 
-    def __init__(self, sim: Any) -> None:
-        from constraint_aware.control.probe import STIFFNESS_VERDICTS, probe_sensor
-
-        self._sim = sim
-        result = probe_sensor(sim, sim.task.workplane_normal)
-        self.verdict = result.verdict
-        usable = result.verdict in STIFFNESS_VERDICTS and result.arm_stiffness
-        self.translational_stiffness = (
-            result.arm_stiffness if usable else sim.translational_stiffness
-        )
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._sim, name)
+    result = probe_sensor(sim, sim.task.workplane_normal)
+    measured = result.arm_stiffness if result.verdict in STIFFNESS_VERDICTS else None
+    return Reporting(sim, translational_stiffness=measured or sim.translational_stiffness)
 
 
 def same_grasp_run(spec: RunSpec) -> dict[str, Any]:
     """`policy` after probing the object itself, from that grasp (no twin, no re-grasp)."""
-    record, _ = run(spec, wrap=_ProbedFirst)
+    record, _ = run(spec, wrap=probed_first)
     s = record.summary()
     return {"task": spec.task, "seed": spec.seed, "success": record.success,
             "peak_force_N": s["peak_force_N"], "mean_force_N": s["mean_force_N"]}  # fmt: skip

@@ -77,6 +77,20 @@ def hook_hand_time_constant(sim: ManipulationSim) -> float:
     return hand.arm_damping(hand.moving_mass, k) / k
 
 
+class Reporting:
+    """Forwards the Robot protocol to the simulator, reporting the given optional members
+    instead of its own (e.g. `translational_stiffness=1000.0`, `tracking_time_constant=0.1`):
+    a robot whose reports are wrong, or measured elsewhere."""
+
+    def __init__(self, sim: Any, **reports: float) -> None:
+        self._sim = sim
+        for name, value in reports.items():
+            setattr(self, name, value)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._sim, name)
+
+
 class FaultyRobot:
     """Forwards the Robot protocol to the simulator, injecting `fault` and watching.
 
