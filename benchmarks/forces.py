@@ -34,6 +34,7 @@ from constraint_aware.bench.analysis import (
     suite_conditions,
 )
 from constraint_aware.bench.forces import (
+    PROBED,
     REFERENCES,
     SETTLED_PERIOD,
     SETTLED_SUFFIX,
@@ -58,10 +59,10 @@ from constraint_aware.sim.tasks import task_config
 
 DIAGNOSED = ("default", "classical", "steady", "steady: stop 17")
 MAP_VARIANTS = ("default", "classical", "steady", "steady: no known rate")
-MAIN_VARIANTS = ("default", "classical", "steady", "steady: stop 17")
+MAIN_VARIANTS = ("default", "classical", "steady", "steady: stop 17", PROBED)
 #: the gap study: the library's controller and the classical one, the references, and both
 #: controllers with the settled hand
-GAP_VARIANTS = ("steady", "classical", *REFERENCES)
+GAP_VARIANTS = ("steady", "classical", PROBED, *REFERENCES)
 GAP_SETTLED = ("steady", "classical")
 GAP_TASKS = ("door-opening", "drawer-opening")
 #: the run-by-run figure, beside forces.md
@@ -338,10 +339,11 @@ def main() -> None:
         _runs(gap_conds, GAP_VARIANTS, policy)
         + _runs(gap_conds, GAP_SETTLED, policy, settled=True)
         + _runs(stiff_conds, GAP_SETTLED, policy)
-        + _runs(held_conds, GAP_SETTLED, policy)
+        + _runs(held_conds, (*GAP_SETTLED, PROBED), policy)
     )
     paired = [
         *paired_differences(gap_runs, "steady", "classical"),
+        *paired_differences(gap_runs, PROBED, "classical"),
         *paired_differences(gap_runs, "steady" + SETTLED_SUFFIX, "classical" + SETTLED_SUFFIX),
     ]
     data: dict[str, Any] = {

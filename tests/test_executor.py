@@ -254,6 +254,26 @@ def test_a_configured_stiffness_replaces_the_report_and_is_noted() -> None:
     assert "stiffness 2500 N/m from the configuration (robot reports 2000 N/m)" in rec.notes
 
 
+def test_a_configured_grasp_play_gives_the_controller_the_force_it_hides() -> None:
+    with pytest.raises(InvalidInputError, match=r"grasp_play.*\[0, 0\.005\] \[m\]"):
+        ExecutorConfig(grasp_play=0.006)  # more than half a 1 cm step
+    with pytest.raises(InvalidInputError, match="grasp_play"):
+        ExecutorConfig(grasp_play=math.nan)
+    seen: list[float | None] = []
+
+    class Recording(FixedDirection):
+        def next_direction(self, inp: ControlInput) -> np.ndarray:
+            seen.append(inp.play_force)
+            return super().next_direction(inp)
+
+    rec = Executor(Stiff(), Recording(), ExecutorConfig(max_steps=3, grasp_play=0.0015)).run(d0(0))
+    assert seen and all(f == pytest.approx(3.0) for f in seen)  # 2000 N/m x 1.5 mm
+    assert "grasp play 1.50 mm from the configuration" in rec.notes
+    seen.clear()
+    Executor(Stiff(), Recording(), ExecutorConfig(max_steps=3)).run(d0(0))
+    assert seen and all(f is None for f in seen)  # no play configured: nothing to add
+
+
 def test_executor_module_never_imports_mujoco() -> None:
     code = (
         "import sys\n"

@@ -44,6 +44,8 @@ class Rail:
     rotation: Rotation = field(default_factory=Rotation.identity)
     sign: float = 1.0  # -1: the driver reports the wrench with the opposite sign
     play: float = 0.0  # [m] the grasp moves freely this far across the rail either way
+    rail_stiffness: float | None = None  # [N/m] beyond the play the rail yields across like
+    # a spring of this stiffness (None: rigid)
     nan_after: int | None = None
     raise_after: int | None = None
     position: np.ndarray = field(default_factory=lambda: np.zeros(3))
@@ -83,10 +85,13 @@ class Rail:
 
     def advance(self) -> None:
         goal = self.target.position if self.free else float(self.target.position @ U) * U
-        if not self.free and self.play:  # across the rail, free within the play
+        if not self.free and (self.play or self.rail_stiffness is not None):  # across the rail
             across = self.target.position - goal
             size = float(np.linalg.norm(across))
-            goal = goal + across * (min(size, self.play) / size if size > 0 else 0.0)
+            reach = min(size, self.play)
+            if self.rail_stiffness is not None and size > self.play:  # arm and rail in series
+                reach += self.k / (self.k + self.rail_stiffness) * (size - self.play)
+            goal = goal + across * (reach / size if size > 0 else 0.0)
         self.position = self.position + 0.5 * (goal - self.position)
 
     def hold(self) -> None:
@@ -126,11 +131,13 @@ def test_healthy_rail_is_consistent_and_measures_the_true_stiffness() -> None:
 
 def test_every_command_stays_within_the_push_of_the_setpoint() -> None:
     robot = Rail()
-    cfg = ProbeConfig(amplitude=0.002)
+    cfg = ProbeConfig(amplitude=0.002, play_amplitude=0.003)
     probe_sensor(robot, N, cfg)
+    deepest = 0.0
     for pose in robot.commands:
         assert np.all(np.isfinite(pose.position))
-        assert float(np.linalg.norm(pose.position)) <= 0.002 + 1e-12
+        deepest = max(deepest, float(np.linalg.norm(pose.position)))
+    assert deepest == pytest.approx(0.003)  # the deep pushes, no further
     assert np.allclose(robot.commands[-1].position, 0.0)  # the setpoint is restored
 
 
@@ -481,3 +488,26 @@ def test_the_give_measures_the_play_of_the_grasp() -> None:
     across = [p for p in loose.pushes if abs(float(np.dot(p.direction, U))) < 1e-9]
     for p in across:  # 3 mm pushes, 1 mm of them free: k (a - p) / a
         assert p.push_stiffness == pytest.approx(2000.0 * 2 / 3, rel=0.02)
+
+
+@pytest.mark.parametrize("play", [0.0, 0.0005, 0.0015])
+def test_two_push_depths_separate_the_play_from_the_rails_compliance(play: float) -> None:
+    # beyond the play the rail yields like a 12,000 N/m spring: the give is play + |dF| / k_rail
+    robot = Rail(play=play, rail_stiffness=12000.0)
+    cfg = ProbeConfig(amplitude=0.003, play_amplitude=0.0045)
+    result = probe_sensor(robot, N, cfg)
+    assert result.verdict == "consistent", result.reason
+    assert result.give is not None and result.give > play + 1e-4  # the give alone overstates it
+    # within what settling leaves: the hand stops when it moves < settle_tolerance x amplitude
+    # per period, and this rail closes half its distance each period
+    assert result.play == pytest.approx(play, abs=cfg.settle_tolerance * cfg.amplitude)
+    assert len(result.play_pushes) == sum(p.judged for p in result.pushes)
+    assert np.allclose(robot.commands[-1].position, 0.0)  # the setpoint is restored
+
+
+def test_without_a_deep_push_the_play_is_not_measured() -> None:
+    result = probe_sensor(Rail(play=0.001), N, ProbeConfig(play_amplitude=None))
+    assert result.verdict == "consistent"
+    assert result.play is None and result.play_pushes == []
+    with pytest.raises(ConfigError, match="play_amplitude"):
+        ProbeConfig(amplitude=0.003, play_amplitude=0.002)  # must be deeper than the push

@@ -193,3 +193,78 @@ def test_controller_policy_mirrors_the_action_and_policy_raw_does_not() -> None:
         ctrl.reset(X)
     assert abs(_signed_deg(X, raw.next_direction(inp))) > 1.0
     assert _signed_deg(X, steady.next_direction(inp)) == pytest.approx(0.0, abs=1e-9)
+
+
+class AcrossGain:
+    """An inner controller that turns d toward the force across it by `deg_per_N` per newton,
+    after a script of extra forces across d [N] (the object's own part of each reading)."""
+
+    name = "across-gain"
+
+    def __init__(self, deg_per_N: float = 2.0) -> None:
+        self.deg_per_N = deg_per_N
+        self.calls = 0
+
+    def reset(self, direction: FloatArray) -> None:
+        self.calls = 0
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        self.calls += 1
+        across = float(np.asarray(inp.force) @ np.cross(N, inp.direction))
+        return np.asarray(rotate_about(inp.direction, N, math.radians(self.deg_per_N * across)))
+
+    def step_length(self, nominal: float) -> float:
+        return nominal
+
+    def hand_rotation(self) -> None:
+        return None
+
+
+def _across_run(ctrl: SteadyDirection, forces: list[float], **kw: object) -> list[float]:
+    """Applied turns [deg] for readings with these forces across d (the constant 4 N along -d
+    keeps the confidence ramp at 1)."""
+    d = X.copy()
+    ctrl.reset(d)
+    out = []
+    for across in forces:
+        m = np.cross(N, d)
+        inp = ControlInput(-4.0 * d + across * m, np.zeros(3), d, DT, 0.4, N, **kw)  # type: ignore[arg-type]
+        nxt = ctrl.next_direction(inp)
+        out.append(_signed_deg(d, nxt))
+        d = nxt
+    return out
+
+
+def test_the_play_force_is_added_across_d_on_the_first_reading_only() -> None:
+    cfg = SteadyConfig(rotation_feedforward=False)
+    inner = AcrossGain(2.0)
+    turns = _across_run(SteadyDirection(inner, config=cfg), [1.0, 1.0, 1.0], play_force=3.0)
+    # first reading: (1 + 3) N across -> 8 deg; then the readings as they are: 2 deg each
+    assert turns == pytest.approx([8.0, 2.0, 2.0])
+    assert inner.calls == 4  # asked twice on the compensated step only
+    # no play force, or the option off: the readings as they are
+    assert _across_run(SteadyDirection(AcrossGain(2.0), config=cfg), [1.0, 1.0]) == pytest.approx(
+        [2.0, 2.0]
+    )
+    off = dataclasses.replace(cfg, play_compensation=False)
+    plain = _across_run(SteadyDirection(AcrossGain(2.0), config=off), [1.0, 1.0], play_force=3.0)
+    assert plain == pytest.approx([2.0, 2.0])
+
+
+def test_a_reading_below_the_dead_band_across_d_is_not_compensated() -> None:
+    cfg = SteadyConfig(rotation_feedforward=False)
+    turns = _across_run(SteadyDirection(AcrossGain(2.0), config=cfg), [0.3, 1.0], play_force=3.0)
+    assert turns == pytest.approx([0.6, 8.0])  # 0.3 N <= the 0.4 N band: the next one is
+
+
+def test_a_reversal_after_the_compensation_takes_its_extra_turn_back_at_once() -> None:
+    """The compensated reading was the object's resistance seen at an angle, not the
+    constraint: the next proposal reverses. Its extra turn (6 deg) is taken back on top of the
+    proposal, and the reversal does not halve the gain."""
+    cfg = SteadyConfig(rotation_feedforward=False)
+    turns = _across_run(SteadyDirection(AcrossGain(2.0), config=cfg), [1.0, -1.0, -1.0],
+                        play_force=3.0)  # fmt: skip
+    assert turns == pytest.approx([8.0, -2.0 - 6.0, -2.0])  # full gain throughout
+    # a reversal of an ordinary turn still halves the gain
+    turns = _across_run(SteadyDirection(AcrossGain(2.0), config=cfg), [1.0, -1.0])
+    assert turns == pytest.approx([2.0, -1.0])

@@ -51,7 +51,7 @@ from constraint_aware.control.controllers import (
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord, StepRecord
 from constraint_aware.control.robot import reported_stiffness
-from constraint_aware.control.simulate import RunSpec
+from constraint_aware.control.simulate import RunSpec, probe, probed_settings
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.figio import new_figure, save_figure
 from constraint_aware.geometry import FloatArray, turn_vector, unit
@@ -213,6 +213,10 @@ def _wrapped(kind: str) -> ControllerFactory:
 
 _OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False)
 
+#: The variant that probes a twin of its condition at setup (control.simulate.probe) and
+#: runs with what the probe measured (`probed_settings`), as `cap run --probe` does.
+PROBED = "steady + probe"
+
 #: label -> controller factory. "default" is the default policy alone (controller "policy-raw"),
 #: "steady" the full wrapper around it with the mirror-averaged action (controller "policy",
 #: the library's default); "steady: stop 17" is that controller as stop 17 shipped it (no
@@ -232,6 +236,9 @@ VARIANTS: dict[str, ControllerFactory] = {
     "policy sub-steps x2": _wrapped("substeps"),
     "projection": _named("projection"),
     "projection + steady": _steady(SteadyConfig(), inner="projection"),
+    # controller "policy" after a setup probe on a twin (`cap run --probe`): the measured arm
+    # stiffness and grasp play (run_variant)
+    PROBED: _named("policy"),
 }
 
 
@@ -389,6 +396,11 @@ def run_variant(
     threshold = deadband.threshold_from_noise(sensor_noise)
     prep = prepare_condition(cond, spec, threshold, SETTLED_PERIOD if settled else None)
     sim, cfg, normal, d0, rate = prep.sim, prep.config, prep.normal, prep.d0, prep.rotation_rate
+    if variant == PROBED:
+        if settled:
+            raise ValueError(f"{PROBED!r} runs at the robot's own control period only")
+        probed, _twin = probe(spec)
+        cfg = dataclasses.replace(cfg, **probed_settings(probed, cfg))  # type: ignore[arg-type]
     radius = cfg.rotation_radius if rate is not None else None
     path_turn = math.degrees(cfg.step_length / radius) if radius else 0.0
     ctrl: DirectionController

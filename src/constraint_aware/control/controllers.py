@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -31,6 +32,8 @@ class ControlInput:
     length (the force of one fully blocked step), when the robot reports its stiffness;
     fixed_orientation: the executor turns the hand by the torque policy (a fixed-orientation
     grasp, paper appendix): a controller's own hand rotation would override it.
+    play_force: [N] the force the grasp's play hides, k*p (`ExecutorConfig.grasp_play`, measured
+    by control.probe), when known and non-zero.
     """
 
     force: FloatArray
@@ -41,6 +44,7 @@ class ControlInput:
     workplane_normal: FloatArray | None = None
     step_force: float | None = None
     fixed_orientation: bool = False
+    play_force: float | None = None
 
 
 class DirectionController(Protocol):
@@ -158,12 +162,20 @@ class SteadyConfig:
     rotation rate w [rad/s] (revolute, w = v / r, what the classical controller is given), d
     also turns by w dt between consecutive moves and the hand turns by w dt each step; without
     it the hand turns by the smoothed applied turn (HAND_SMOOTHING) instead of each step's.
+    play_compensation: with the force the grasp's play hides (ControlInput.play_force, k*p),
+    the first reading with a force across d above the dead band gets k*p added across d, on
+    the side it points to: the hand crossed the play before the constraint pushed back, so
+    the reading understates the error. One reading cannot tell a constraint's push from the
+    object's resistance seen at an angle (its across part points away from the path): when
+    the next proposal reverses, the compensation's extra turn is taken back at once and the
+    reversal is not counted as an overshoot (docs/forces.md, stop 22).
     """
 
     confidence_ramp: bool = True
     overshoot_damping: bool = True
     strict_reversal: bool = False
     rotation_feedforward: bool = True
+    play_compensation: bool = True
     overshoot_factor: float = OVERSHOOT_FACTOR
     recovery_factor: float = RECOVERY_FACTOR
     min_gain: float = MIN_TURN_GAIN
@@ -219,6 +231,8 @@ class SteadyDirection(_Base):
         self._smoothed = np.zeros(3)  # [rad] exponential average of the applied turns
         self._moved = False
         self._rotation: Rotation | None = None
+        self._play_used = False  # the play has been compensated in this run
+        self._pending_extra: FloatArray | None = None  # last step's applied play turn
 
     def step_length(self, nominal: float) -> float:
         return self.inner.step_length(nominal)
@@ -232,10 +246,19 @@ class SteadyDirection(_Base):
         proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
         if proposed.shape != (3,) or not np.all(np.isfinite(proposed)):
             return proposed  # the executor stops on it ("bad_command"), naming it
+        extra = None  # the play compensation's part of this step's proposed turn
+        if cfg.play_compensation and not self._play_used:
+            compensated = self._compensate_play(inp)
+            if compensated is not None:
+                extra = turn_vector(unit(proposed), unit(compensated))
+                proposed = compensated
         turn = turn_vector(d, unit(proposed))
         size = float(np.linalg.norm(turn))
+        pending, self._pending_extra = self._pending_extra, None
+        take_back = pending is not None and size > 1e-9 and float(turn @ pending) < 0
         if cfg.overshoot_damping and size > 1e-9:
-            overshot = float(turn @ self._last_turn) < 0  # a reversal of the last proposal
+            # a reversal of the last proposal, unless it reverses the play compensation
+            overshot = float(turn @ self._last_turn) < 0 and not take_back
             if cfg.strict_reversal:  # ... by no more than it (rejected, see SteadyConfig)
                 overshot = overshot and size <= float(np.linalg.norm(self._last_turn)) + 1e-12
             if overshot:
@@ -245,8 +268,15 @@ class SteadyDirection(_Base):
             self._last_turn = turn
         if cfg.overshoot_damping:
             turn = self.gain * turn
+        scale = self.gain if cfg.overshoot_damping else 1.0
         if cfg.confidence_ramp:
-            turn = turn * _confidence(float(np.linalg.norm(inp.force)), inp.threshold)
+            ramp = _confidence(float(np.linalg.norm(inp.force)), inp.threshold)
+            turn, scale = turn * ramp, scale * ramp
+        if extra is not None:
+            self._pending_extra = scale * extra  # as applied
+        if take_back:
+            assert pending is not None
+            turn = turn - pending
         normal = inp.workplane_normal
         known = cfg.rotation_feedforward and self.rotation_rate is not None and normal is not None
         per_step = np.zeros(3)
@@ -262,6 +292,26 @@ class SteadyDirection(_Base):
         else:
             self._rotation = Rotation.from_rotvec(per_step if known else self._smoothed)
         return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
+
+    def _compensate_play(self, inp: ControlInput) -> FloatArray | None:
+        """The inner controller's proposal for the reading with the play's force added across
+        d (SteadyConfig.play_compensation), or None when this reading is not compensated: no
+        play force or workplane known, or no force across d above the dead band. The inner
+        controller is asked a second time for this one step of the run."""
+        normal = inp.workplane_normal
+        if not inp.play_force or normal is None:
+            return None
+        force = np.asarray(inp.force, dtype=float)
+        across_dir = unit(np.cross(normal, inp.direction))  # in the workplane, across d
+        across = float(force @ across_dir)
+        if abs(across) <= inp.threshold:
+            return None
+        self._play_used = True
+        added = math.copysign(inp.play_force, across) * across_dir
+        proposed = np.asarray(self.inner.next_direction(replace(inp, force=force + added)))
+        if proposed.shape != (3,) or not np.all(np.isfinite(proposed)):
+            return None
+        return proposed
 
 
 def _confidence(force_norm: float, threshold: float) -> float:

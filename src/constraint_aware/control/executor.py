@@ -192,6 +192,8 @@ class ExecutorConfig:
     stiffness: float | None = None  # [N/m] the arm's stiffness as the wrist sensor sees it,
     # used instead of the robot's `translational_stiffness` (e.g. measured by
     # control.probe.probe_sensor); None: the robot's report
+    grasp_play: float = 0.0  # [m] play in the grasp across the path (control.probe measures
+    # it); the controller is told the force it hides, stiffness x play (ControlInput.play_force)
 
     def __post_init__(self) -> None:
         name = "ExecutorConfig."
@@ -226,6 +228,9 @@ class ExecutorConfig:
             check_number(
                 name + "stiffness", self.stiffness, low=0, low_open=True, high=1e6, unit="N/m"
             )
+        check_number(
+            name + "grasp_play", self.grasp_play, low=0, high=0.5 * self.step_length, unit="m"
+        )
         if self.rotation_radius is not None:
             check_number(
                 name + "rotation_radius", self.rotation_radius, low=0, low_open=True, unit="m"
@@ -401,6 +406,11 @@ class Executor:
                     f"{reported})"
                 )
                 stiffness = cfg.stiffness
+            if cfg.grasp_play > 0:
+                record.notes.append(
+                    f"grasp play {cfg.grasp_play * 1000:.2f} mm from the configuration"
+                    + ("" if stiffness is not None else ": unused without a stiffness")
+                )
             tau = self._tracking_time_constant(record)
             if cfg.max_lead is not None:
                 max_lead = cfg.max_lead
@@ -564,6 +574,11 @@ class Executor:
             st.normal,
             None if st.stiffness is None else st.stiffness * cfg.step_length,
             fixed_orientation=st.torque_policy is not None,
+            play_force=(
+                st.stiffness * cfg.grasp_play
+                if st.stiffness is not None and cfg.grasp_play > 0
+                else None
+            ),
         )
         raw = np.asarray(self.controller.next_direction(inp), dtype=float)
         if raw.shape != (3,) or not np.all(np.isfinite(raw)) or np.linalg.norm(raw) < 1e-9:

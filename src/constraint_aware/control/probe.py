@@ -19,6 +19,13 @@ policy's step force k*delta and the executor's force prediction take from
 `translational_stiffness`. Pushes the object follows (along a drawer's rail) carry little
 force and are not judged.
 
+The grasp's play: each judged push is repeated `play_amplitude` deep. How far the hand moved
+against the force it met (`give`) is the play in the grasp plus the grasp's and the object's
+compliance, g = p + |dF| / k_object; two depths give the line and its intercept p, the play.
+A grasp with play hides up to k p of the constraint force when the hand first moves off the
+path (the hook hand on a bar: about 1.5 mm, 3 N at 2000 N/m); the `policy` controller adds it
+back (`SteadyConfig.play_compensation`).
+
 What is not a sensor convention is named as such, not judged: a reading at the setpoint that
 changes between pushes (`unsteady`: a drifting sensor, a creeping grasp), identical samples
 (`bad_reading`, a stale driver) and an arm that neither moves nor meets a force on any push
@@ -94,6 +101,9 @@ STALE_SAMPLES = 3
 DRIFT_SHARE = 0.5
 #: A push moved the hand when it moved at least this x amplitude (else blocked or frozen).
 MOVED_SHARE = 0.1
+#: A deep push measures the play only when its |dF| exceeds the shallow push's by at least
+#: this x min_force (else the line through the two is not determined).
+PLAY_FORCE_SPREAD = 1.0
 
 
 @dataclass(frozen=True)
@@ -109,6 +119,9 @@ class ProbeConfig:
     force_limit: float = 20.0  # [N] |dF| above this stops the probe
     min_force: float = SELF_CHECK_MIN_FORCE  # [N] a push is judged when its in-plane |dF| is
     # at least this (the self-check's own gate); < force_limit
+    play_amplitude: float | None = 0.0045  # [m] each judged push repeated this deep, for the
+    # grasp's play (module docstring); > amplitude (6 mm moves the hook hand's door from
+    # rest); None: play not measured
 
     def __post_init__(self) -> None:
         n = "ProbeConfig."
@@ -122,6 +135,11 @@ class ProbeConfig:
             n + "min_force", self.min_force, low=0, high=limit, low_open=True, high_open=True,
             unit="N",
         )  # fmt: skip
+        if self.play_amplitude is not None:
+            check_number(
+                n + "play_amplitude", self.play_amplitude, low=self.amplitude, high=0.02,
+                low_open=True, unit="m",
+            )  # fmt: skip
 
 
 @dataclass
@@ -129,6 +147,7 @@ class ProbePush:
     """One push. Vectors (3,) in the world frame, in-plane parts when the normal is known."""
 
     direction: list[float]  # unit push direction
+    amplitude: float  # [m] how far the setpoint was pushed
     force_change: list[float]  # dF [N]: the reading minus the one at the setpoint before it
     stretch_change: list[float]  # [m] (setpoint - measured) minus its value at the setpoint
     moved: float  # [m] how far the hand moved from where it held at the setpoint
@@ -152,6 +171,10 @@ class ProbeResult:
     median_cos: float | None = None
     arm_stiffness: float | None = None  # [N/m] median over judged pushes
     give: float | None = None  # [m] median over judged pushes (ProbePush.give)
+    play_pushes: list[ProbePush] = field(default_factory=list)  # the deep pushes (not judged
+    # for the verdict: only `pushes` are)
+    play: float | None = None  # [m] the grasp's play: median over the judged directions of
+    # the give-against-force line's intercept, >= 0 (None: not measured)
     reported_stiffness: float | None = None  # [N/m] the robot's translational_stiffness
     workplane_normal: list[float] | None = None  # (3,) the plane pushed in; None: 3-D
     notes: list[str] = field(default_factory=list)
@@ -221,29 +244,26 @@ def probe_sensor(
                 "periods before the first push",
             )
         result.force_offset = base_force.tolist()
+        base = (base_force, base_stretch, base_pose)
         for u in push_directions(cfg.directions, normal):
-            robot.command_pose(Pose(home.position + cfg.amplitude * u, home.orientation))
-            force, stretch, pose, settled = reader.settle_push(base_force)
-            result.pushes.append(
-                _push(u, force - base_force, stretch - base_stretch, pose, base_pose, settled,
-                      normal, cfg)
-            )  # fmt: skip
-            robot.command_pose(home)
-            after, after_stretch, after_pose, back = reader.settle_push(base_force)
-            if not back:
-                raise _Stop(
-                    "unsteady",
-                    f"the hand did not settle back at the setpoint after push "
-                    f"{len(result.pushes)} within {cfg.max_settle_periods} periods",
+            base = _push_and_return(
+                robot, reader, home, u, cfg.amplitude, base, normal, cfg, result.pushes
+            )
+        # the deep pushes after the whole ring, so that they cannot disturb the pushes the
+        # verdict judges (an arm with joint friction keeps some of a push's deflection)
+        deep = cfg.play_amplitude
+        for push in [p for p in result.pushes if p.judged] if deep is not None else []:
+            assert deep is not None
+            u = np.asarray(push.direction)
+            try:
+                base = _push_and_return(
+                    robot, reader, home, u, deep, base, normal, cfg, result.play_pushes
                 )
-            drift = float(np.linalg.norm(in_plane(after - base_force, normal)))
-            if drift > DRIFT_SHARE * cfg.min_force:
-                raise _Stop(
-                    "unsteady",
-                    f"the reading at the setpoint changed by {drift:.2f} N over push "
-                    f"{len(result.pushes)} (at most {DRIFT_SHARE * cfg.min_force:.2f} N)",
-                )
-            base_force, base_stretch, base_pose = after, after_stretch, after_pose
+            except _Stop as stop:
+                if stop.verdict != "unsteady":
+                    raise
+                result.notes.append(f"play not measured: {stop}")
+                break
     except _Stop as stop:
         result.verdict, result.reason = stop.verdict, str(stop)
         _restore(robot, home, result)
@@ -261,6 +281,47 @@ def probe_sensor(
     # probe (hold() would move the setpoint onto the measured pose and release the preload)
     _verdict(result, cfg)
     return result
+
+
+def _push_and_return(
+    robot: Robot,
+    reader: _Reader,
+    home: Pose,
+    u: FloatArray,
+    amplitude: float,
+    base: tuple[FloatArray, FloatArray, Pose],
+    normal: FloatArray | None,
+    cfg: ProbeConfig,
+    into: list[ProbePush],
+) -> tuple[FloatArray, FloatArray, Pose]:
+    """One push `amplitude` along u from the setpoint `home` and back; the push, compared with
+    the setpoint reading `base` (force, stretch, pose) before it, is appended to `into` before
+    the hand goes back (kept if that fails). Returns the setpoint reading after it (the next
+    push's base). Stops `unsteady` when the hand does not settle back, or the setpoint
+    reading drifted."""
+    base_force, base_stretch, base_pose = base
+    robot.command_pose(Pose(home.position + amplitude * u, home.orientation))
+    force, stretch, pose, settled = reader.settle_push(base_force)
+    into.append(
+        _push(u, amplitude, force - base_force, stretch - base_stretch, pose, base_pose, settled,
+              normal, cfg)
+    )  # fmt: skip
+    robot.command_pose(home)
+    after, after_stretch, after_pose, back = reader.settle_push(base_force)
+    if not back:
+        raise _Stop(
+            "unsteady",
+            f"the hand did not settle back at the setpoint after a push within "
+            f"{cfg.max_settle_periods} periods",
+        )
+    drift = float(np.linalg.norm(in_plane(after - base_force, normal)))
+    if drift > DRIFT_SHARE * cfg.min_force:
+        raise _Stop(
+            "unsteady",
+            f"the reading at the setpoint changed by {drift:.2f} N over a push "
+            f"(at most {DRIFT_SHARE * cfg.min_force:.2f} N)",
+        )
+    return after, after_stretch, after_pose
 
 
 class _Reader:
@@ -350,6 +411,7 @@ def _check_pose(pose: Pose, what: str) -> None:
 
 def _push(
     u: FloatArray,
+    amplitude: float,
     d_force: FloatArray,
     d_stretch: FloatArray,
     pose: Pose,
@@ -361,10 +423,11 @@ def _push(
     d_force, d_stretch = in_plane(d_force, normal), in_plane(d_stretch, normal)
     f, s = float(np.linalg.norm(d_force)), float(np.linalg.norm(d_stretch))
     # a stretch below the settle tolerance has no direction to compare
-    judged = settled and f >= cfg.min_force and s >= cfg.settle_tolerance * cfg.amplitude
+    judged = settled and f >= cfg.min_force and s >= cfg.settle_tolerance * amplitude
     travel = in_plane(pose.position - base_pose.position, normal)
     return ProbePush(
         direction=u.tolist(),
+        amplitude=amplitude,
         force_change=d_force.tolist(),
         stretch_change=d_stretch.tolist(),
         moved=float(np.linalg.norm(travel)),
@@ -372,7 +435,7 @@ def _push(
         judged=judged,
         cos=float(d_force @ d_stretch) / (f * s) if judged else None,
         arm_stiffness=f / s if judged else None,
-        push_stiffness=-float(d_force @ u) / cfg.amplitude,
+        push_stiffness=-float(d_force @ u) / amplitude,
         give=-float(travel @ d_force) / f if judged else None,
     )
 
@@ -408,6 +471,7 @@ def _verdict(result: ProbeResult, cfg: ProbeConfig) -> None:
     stiffness = float(np.median([p.arm_stiffness for p in judged if p.arm_stiffness]))
     result.median_cos, result.arm_stiffness = cos, stiffness
     result.give = float(np.median([p.give for p in judged if p.give is not None]))
+    result.play = grasp_play(result.pushes, result.play_pushes, cfg.min_force)
     counted = f"median cos(dF, stretch) {cos:+.2f} over {len(judged)} pushes"
     if cos >= PROBE_CONVENTION_COS:
         result.verdict, result.reason = "flipped_sign", counted
@@ -425,6 +489,26 @@ def _verdict(result: ProbeResult, cfg: ProbeConfig) -> None:
             )
         else:
             result.verdict, result.reason = "consistent", f"{counted}; arm {stiffness:.0f} N/m"
+
+
+def grasp_play(
+    pushes: list[ProbePush], deep_pushes: list[ProbePush], min_force: float
+) -> float | None:
+    """[m] The grasp's play from pairs of judged pushes along one direction at two depths: the
+    intercept p of give = p + |dF| / k_object, clipped to [0, the shallow push's give]; the
+    median over the pairs, None without a pair whose forces differ by PLAY_FORCE_SPREAD x
+    min_force."""
+    plays = []
+    for deep in deep_pushes:
+        shallow = next((p for p in pushes if p.judged and p.direction == deep.direction), None)
+        if shallow is None or not deep.judged or shallow.give is None or deep.give is None:
+            continue
+        f1, f2 = math.hypot(*shallow.force_change), math.hypot(*deep.force_change)
+        if f2 - f1 < PLAY_FORCE_SPREAD * min_force:
+            continue
+        compliance = (deep.give - shallow.give) / (f2 - f1)  # [m/N] 1 / k_object
+        plays.append(min(max(shallow.give - f1 * max(compliance, 0.0), 0.0), shallow.give))
+    return float(np.median(plays)) if plays else None
 
 
 def check_force_limit(config: ProbeConfig, limit: float) -> ProbeConfig:

@@ -97,7 +97,9 @@ class RunSpec:
     probe: bool = False  # probe at setup (control.probe) on a twin of this task (same
     # robot, object, grasp and seed), then run on a fresh grasp: the arm stiffness measured
     # at the wrist replaces the robot's report (kept, with a note, when the probe cannot
-    # measure it), and a probe that finds the wrench convention wrong stops the run before it
+    # measure it), the grasp's measured play goes to ExecutorConfig.grasp_play
+    # (`probed_settings`), and a probe that finds the wrench convention wrong stops the run
+    # before it
     # moves (`sensor_convention`). On a real arm: probe, re-grasp, run. Probing the object
     # and then running without re-grasping disturbs the grasp (benchmarks/probe.py)
 
@@ -202,6 +204,18 @@ def probe(
     return probe_sensor(robot, task.workplane_normal, config), sim
 
 
+def probed_settings(probed: ProbeResult, config: ExecutorConfig) -> dict[str, float]:
+    """The ExecutorConfig fields a setup probe measured: the arm stiffness the wrist sees and
+    the grasp's play (capped at the executor's bound, half a step), when the wrench
+    convention holds; none otherwise."""
+    if probed.verdict not in STIFFNESS_VERDICTS or not probed.arm_stiffness:
+        return {}
+    out = {"stiffness": probed.arm_stiffness}
+    if probed.play is not None:
+        out["grasp_play"] = min(probed.play, 0.5 * config.step_length)
+    return out
+
+
 def _probe_config(task: TaskConfig) -> ProbeConfig:
     """The probe's defaults, its force limit no higher than the task's."""
     default = ProbeConfig()
@@ -254,8 +268,8 @@ def run(
         robot = wrap(robot)  # type: ignore[arg-type]
     cfg = executor_config(task, spec.torque_policy)
     changes = {**spec.executor_overrides, **(executor_overrides or {})}
-    if probed is not None and probed.verdict in STIFFNESS_VERDICTS and probed.arm_stiffness:
-        changes.setdefault("stiffness", probed.arm_stiffness)
+    if probed is not None:
+        changes = {**probed_settings(probed, cfg), **changes}
     if changes:
         cfg = dataclasses.replace(cfg, **changes)  # type: ignore[arg-type]
     assert cfg.workplane_normal is not None
