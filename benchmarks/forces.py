@@ -246,6 +246,10 @@ def render(data: dict[str, Any]) -> list[str]:
         "## The paper's offsets over sensor-noise seeds (same object, same offset)",
         "",
         *table_lines(cells("paper_offsets_noise_seeds"), MAIN_VARIANTS),
+        "",
+        "## The door's paper offset mirrored (-15 deg), over the same sensor-noise seeds",
+        "",
+        *table_lines(cells("door_mirrored_noise_seeds"), MAIN_VARIANTS),
     ]
     lines += [
         "",
@@ -298,6 +302,11 @@ def main() -> None:
         MAIN_VARIANTS,
         policy,
     )
+    # the door's paper offset mirrored: the paper tests +15 deg only, and the path turns
+    # toward d there as the door opens (a controller that does not turn d with the path gains
+    # at +15 deg what it loses at -15 deg)
+    mirrored = Condition("paper offset mirrored", -15.0, "door-opening", -15.0)
+    mirror_runs = _runs([(mirrored, s) for s in range(args.noise_seeds)], MAIN_VARIANTS, policy)
     map_runs = _runs(
         [(c, s) for c in resistance_map() for s in range(args.map_seeds)], MAP_VARIANTS, policy
     )
@@ -363,6 +372,7 @@ def main() -> None:
             dataclasses.asdict(c) for c in summarize(noise_runs, aggregate_levels=True)
         ],
         "resistance": [dataclasses.asdict(c) for c in summarize(map_runs)],
+        "door_mirrored_noise_seeds": [dataclasses.asdict(c) for c in summarize(mirror_runs)],
         "settled_period_s": SETTLED_PERIOD,
         "step_force_N": step_force,
         "gap": [dataclasses.asdict(c) for c in summarize(gap_runs, aggregate_levels=True)],

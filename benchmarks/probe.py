@@ -6,19 +6,19 @@ convention faults, and what its measured stiffness does to the policy's runs.
 Part 1, verdicts: every task, seeds 0-4 with the suite's randomized objects, on the hook hand
 and the Jaco, healthy and with three faults: the wrench sign flipped, the sensor frame turned
 90 deg about the workplane normal (bench/faults.py), and the robot reporting half its
-stiffness. Part 2, runs: controller `policy` on the randomized suite (bench/sweep.py, `--seeds`
-per task) and at the paper's offsets (sensor-noise seeds 0-9), each run once as shipped (the
-step force from the robot's reported stiffness) and once after the probe (`RunSpec.probe`: the
-stiffness the probe measured), with the classical controller beside them. Same seeds
-throughout; per cell the median peak |F|, the median run mean |F| [N], and the run-by-run
-difference (probe minus shipped). Part 3, diagnostics behind the README's explanations (seed
-0): the Jaco probed with its joints' friction feed-forward off
-(`OscConfig.friction_compensation = 0`); the hook hand's pole grasp held still for 12 s, no
-probe (the reading and the pole's travel per second); and probing the object and then
-running from that same grasp, without a re-grasp (drawer and pole suites, hook hand), which
-is why `RunSpec.probe` probes a twin; and the force a grasp meets against the push's size,
-1.5-8 mm (play in the grasp, a force bias in the arm). Runs are independent, spread over
-`--workers` processes.
+stiffness; with each healthy probe's measured play. Part 2, runs: controller `policy` on the
+randomized suite (bench/sweep.py, `--seeds` per task) and at the paper's offsets (sensor-noise
+seeds 0-9), each run once as shipped (the step force from the robot's reported stiffness) and
+once after the probe (`RunSpec.probe`: the stiffness and the grasp's play the probe measured),
+with the classical controller beside them. Same seeds throughout; per cell the median peak |F|,
+the median run mean |F| [N], and the run-by-run difference (probe minus shipped). Part 3,
+diagnostics behind the README's explanations (seed 0): the Jaco probed with its joints'
+friction feed-forward off (`OscConfig.friction_compensation = 0`); the hook hand's pole grasp
+held still for 12 s, no probe (the reading and the pole's travel per second); and probing the
+object and then running from that same grasp, without a re-grasp (drawer and pole suites, hook
+hand), which is why `RunSpec.probe` probes a twin; and the force a grasp meets against the
+push's size, 1.5-8 mm (play in the grasp, a force bias in the arm). Runs are independent,
+spread over `--workers` processes.
 """
 
 from __future__ import annotations
@@ -75,6 +75,8 @@ def verdict(job: tuple[str, str, str, int]) -> dict[str, Any]:
         "arm_stiffness": result.arm_stiffness,
         "reported_stiffness": result.reported_stiffness,
         "judged": sum(p.judged for p in result.pushes),
+        "give_m": result.give,
+        "play_m": result.play,
     }
 
 
@@ -276,12 +278,23 @@ def main() -> None:
                 and v["arm_stiffness"] is not None
             ]
             stiffness.setdefault(robot, {})[task] = statistics.median(ks) if ks else None
+    play: dict[str, dict[str, list[float]]] = {}  # [mm] min and max over the healthy seeds
+    for robot in ROBOTS:
+        for task in TASKS:
+            ps = [
+                1000 * v["play_m"]
+                for v in verdicts
+                if (v["robot"], v["task"], v["fault"]) == (robot, task, "none")
+                and v["play_m"] is not None
+            ]
+            play.setdefault(robot, {})[task] = [min(ps), max(ps)] if ps else []
     out = {
         "seeds": args.seeds,
         "workers": args.workers,
         "load_average_1min_at_start": os.getloadavg()[0],
         "verdict_counts": counts,
         "measured_stiffness_median": stiffness,
+        "measured_play_range_mm": play,
         "cells": summarize(runs, [k for k, _ in specs]),
         "diagnostics": {
             "jaco_without_friction_feedforward": no_feedforward,
@@ -297,6 +310,7 @@ def main() -> None:
     args.out.write_text(json.dumps(out, indent=1) + "\n")
     print(json.dumps(counts, indent=1))
     print(json.dumps(stiffness, indent=1))
+    print(json.dumps(play, indent=1))
     for row in out["cells"]:
         parts = [f"{row['robot']:9s} {row['task']:16s} {row['cell']:10s}"]
         for name in ("policy", "policy + probe", "classical"):

@@ -233,3 +233,14 @@ def test_a_paired_cell_does_not_depend_on_the_other_cells(runs: list[RunDiagnosi
     nan = dataclasses.replace(classical, seed=1, mean_force_N=math.nan)
     (cell,) = paired_differences([*drawer[:3], nan], "steady", "classical")
     assert cell.n == 1  # a non-finite pair is left out
+
+
+def test_the_probed_variant_probes_a_twin_and_not_at_the_settled_period() -> None:
+    from constraint_aware.bench.forces import PROBED, VARIANTS, run_variant
+
+    assert PROBED in VARIANTS
+    cond = Condition("paper offsets", 30.0, "drawer-opening", 30.0)
+    run = run_variant(cond, PROBED, 0)
+    assert run.success and run.variant == PROBED
+    with pytest.raises(ValueError, match="control period"):
+        run_variant(cond, PROBED, 0, settled=True)

@@ -360,6 +360,10 @@ def test_a_run_after_the_probe_uses_the_measured_stiffness() -> None:
     assert record.notes[0].startswith("probe: consistent")
     measured = [n for n in record.notes if n.startswith("stiffness ")]
     assert measured and "robot reports 2000 N/m" in measured[0]
+    # and the hook's play across the drawer's bar (about 1.5 mm, docs/forces.md)
+    play = [n for n in record.notes if n.startswith("grasp play ")]
+    assert play, record.notes
+    assert 1.2 <= float(play[0].split()[2]) <= 1.8  # [mm]
 
 
 def test_a_probe_that_finds_a_flipped_sign_stops_the_run_before_it_moves() -> None:

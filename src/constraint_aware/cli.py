@@ -788,15 +788,19 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
     except BaseException as exc:  # write what the probe has, then report (Ctrl-C: 130)
         return report_partial(exc, "probe_result", args.json, "the probe")
     out = human(args)
-    amplitude = (config or ProbeConfig()).amplitude * 1000
-    table = Table(title=Text(f"{args.task} / {args.robot}: pushes of {amplitude:g} mm"))
+    used = config or ProbeConfig()
+    title = f"{args.task} / {args.robot}: pushes of {used.amplitude * 1000:g} mm"
+    if used.play_amplitude is not None:
+        title += f" (deep, for the play: {used.play_amplitude * 1000:g} mm)"
+    table = Table(title=Text(title))
     columns = ("direction", "|dF| [N]", "cos(dF, stretch)", "arm [N/m]", "push [N/m]", "give [mm]")
     for column in columns:
         table.add_column(column, justify="right")
-    for push in result.pushes:
+    for push in [*result.pushes, *result.play_pushes]:
         df = math.hypot(*push.force_change)
+        deep = push.amplitude > used.amplitude  # a play push
         table.add_row(
-            " ".join(f"{x:+.2f}" for x in push.direction),
+            " ".join(f"{x:+.2f}" for x in push.direction) + (" (deep)" if deep else ""),
             f"{df:.2f}",
             "-" if push.cos is None else f"{push.cos:+.2f}",
             "-" if push.arm_stiffness is None else f"{push.arm_stiffness:.0f}",
@@ -813,6 +817,14 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
         ),
         soft_wrap=True,
     )
+    if result.play is not None:
+        out.print(
+            Text(
+                f"grasp play {result.play * 1000:.2f} mm (the deep pushes' give against force, "
+                f"extrapolated to zero force); median give {(result.give or 0) * 1000:.2f} mm"
+            ),
+            soft_wrap=True,
+        )
     for note in result.notes:
         out.print(Text(f"note: {note}"), soft_wrap=True)
     if args.json:
