@@ -166,7 +166,7 @@ def force_by_amplitude(job: tuple[str, str, float]) -> dict[str, Any]:
     from constraint_aware.control.probe import ProbeConfig
 
     robot, task, amplitude = job
-    config = ProbeConfig(amplitude=amplitude, force_limit=40.0)
+    config = ProbeConfig(amplitude=amplitude, force_limit=40.0, play_amplitude=None)
     result, _ = probe(RunSpec(task, seed=0, robot=robot), config)
     met = [-float(np.dot(p.force_change, p.direction)) for p in result.pushes]
     return {"robot": robot, "task": task, "amplitude_m": amplitude, "verdict": result.verdict,

@@ -515,3 +515,63 @@ def test_without_a_deep_push_the_play_is_not_measured() -> None:
     assert result.play is None and result.play_pushes == []
     with pytest.raises(ConfigError, match="play_amplitude"):
         ProbeConfig(amplitude=0.003, play_amplitude=0.002)  # must be deeper than the push
+
+
+def test_a_deep_push_that_would_pass_the_force_limit_is_not_made() -> None:
+    # a 5000 N/m arm blocked across the rail: 15 N at 3 mm, about 22.5 N expected at 4.5 mm
+    robot = Rail(k=5000.0, reported=5000.0)
+    result = probe_sensor(robot, N)
+    assert result.verdict == "consistent", result.reason  # the ring's verdict stands
+    assert result.arm_stiffness == pytest.approx(5000.0, rel=0.02)
+    skipped = [n for n in result.notes if "not made" in n and "20 N limit" in n]
+    assert len(skipped) == 2, result.notes  # the two straight across the rail (15 N at 3 mm)
+    # the four diagonal ones (10.6 N at 3 mm, about 16 N deep) were made, below the limit
+    assert len(result.play_pushes) == 4
+    assert all(math.hypot(*p.force_change) < 20.0 for p in result.play_pushes)
+    assert result.play == pytest.approx(0.0, abs=3e-5)  # a rigid rail
+
+
+@dataclass
+class CreepingRail(Rail):
+    """A rail whose grasp slips on a deep push: afterwards the reading at the setpoint is
+    3 N off (the object or the grasp moved)."""
+
+    slipped: bool = False
+
+    def command_pose(self, pose: Pose) -> None:
+        super().command_pose(pose)
+        if float(np.linalg.norm(pose.position)) > 0.004:
+            self.slipped = True
+
+    def read_wrench(self) -> Wrench:
+        w = super().read_wrench()
+        return Wrench(w.force + (3.0 * U if self.slipped else 0.0), w.torque)
+
+
+def test_a_deep_push_that_moves_the_grasp_leaves_the_play_unmeasured() -> None:
+    robot = CreepingRail(play=0.001)
+    result = probe_sensor(robot, N)
+    assert result.verdict == "consistent", result.reason  # the ring's verdict stands
+    assert result.play is None  # not from a push where the grasp moved
+    assert any(n.startswith("play not measured") and "deep push" in n for n in result.notes)
+    assert np.allclose(robot.commands[-1].position, 0.0)  # the setpoint is restored
+    assert robot.holds == 0
+
+
+def test_the_deep_ring_is_skipped_when_the_convention_is_wrong() -> None:
+    flipped = probe_sensor(Rail(sign=-1.0), N)
+    assert flipped.verdict == "flipped_sign"
+    assert flipped.play_pushes == [] and flipped.play is None
+
+
+def test_probed_settings_carry_the_measured_stiffness_and_capped_play() -> None:
+    from constraint_aware.control import ExecutorConfig, max_grasp_play, probed_settings
+
+    result = probe_sensor(Rail(play=0.0015, rail_stiffness=12000.0), N)
+    cfg = ExecutorConfig()
+    settings = probed_settings(result, cfg)
+    assert settings["stiffness"] == result.arm_stiffness
+    assert settings["grasp_play"] == result.play
+    short = ExecutorConfig(step_length=0.002)  # half a 2 mm step is less than the play
+    assert probed_settings(result, short)["grasp_play"] == max_grasp_play(0.002) == 0.001
+    assert probed_settings(probe_sensor(Rail(sign=-1.0), N), cfg) == {}  # convention wrong

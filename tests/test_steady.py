@@ -203,14 +203,14 @@ class AcrossGain:
 
     def __init__(self, deg_per_N: float = 2.0) -> None:
         self.deg_per_N = deg_per_N
-        self.calls = 0
+        self.seen: list[float] = []  # [N] the force across d of each reading it was asked
 
     def reset(self, direction: FloatArray) -> None:
-        self.calls = 0
+        self.seen = []
 
     def next_direction(self, inp: ControlInput) -> FloatArray:
-        self.calls += 1
         across = float(np.asarray(inp.force) @ np.cross(N, inp.direction))
+        self.seen.append(across)
         return np.asarray(rotate_about(inp.direction, N, math.radians(self.deg_per_N * across)))
 
     def step_length(self, nominal: float) -> float:
@@ -241,7 +241,9 @@ def test_the_play_force_is_added_across_d_on_the_first_reading_only() -> None:
     turns = _across_run(SteadyDirection(inner, config=cfg), [1.0, 1.0, 1.0], play_force=3.0)
     # first reading: (1 + 3) N across -> 8 deg; then the readings as they are: 2 deg each
     assert turns == pytest.approx([8.0, 2.0, 2.0])
-    assert inner.calls == 4  # asked twice on the compensated step only
+    # the inner controller itself is asked once per step, the compensated step with the
+    # compensated reading (its state advances once); the reading as it is went to a copy
+    assert inner.seen == pytest.approx([4.0, 1.0, 1.0])
     # no play force, or the option off: the readings as they are
     assert _across_run(SteadyDirection(AcrossGain(2.0), config=cfg), [1.0, 1.0]) == pytest.approx(
         [2.0, 2.0]
@@ -268,3 +270,29 @@ def test_a_reversal_after_the_compensation_takes_its_extra_turn_back_at_once() -
     # a reversal of an ordinary turn still halves the gain
     turns = _across_run(SteadyDirection(AcrossGain(2.0), config=cfg), [1.0, -1.0])
     assert turns == pytest.approx([2.0, -1.0])
+
+
+def test_a_take_back_on_a_reading_near_the_dead_band_is_scaled_by_its_confidence() -> None:
+    """A reversal read at 0.45 N against a 0.4 N band (confidence 0.125) takes back only an
+    eighth of the compensation's extra turn: such a reading is mostly noise."""
+    cfg = SteadyConfig(rotation_feedforward=False)
+    ctrl = SteadyDirection(AcrossGain(2.0), config=cfg)
+    d = X.copy()
+    ctrl.reset(d)
+    first = ControlInput(-4.0 * d + np.cross(N, d), np.zeros(3), d, DT, 0.4, N, play_force=3.0)
+    d2 = ctrl.next_direction(first)
+    assert _signed_deg(d, d2) == pytest.approx(8.0)
+    weak = ControlInput(-0.45 * np.cross(N, d2), np.zeros(3), d2, DT, 0.4, N, play_force=3.0)
+    d3 = ctrl.next_direction(weak)
+    assert _signed_deg(d2, d3) == pytest.approx(0.125 * (-0.9 - 6.0))
+
+
+def test_a_non_finite_proposal_on_the_compensated_step_reaches_the_executor() -> None:
+    class Broken(AcrossGain):
+        def next_direction(self, inp: ControlInput) -> FloatArray:
+            return np.full(3, np.nan)
+
+    ctrl = SteadyDirection(Broken(), config=SteadyConfig(rotation_feedforward=False))
+    ctrl.reset(X)
+    inp = ControlInput(-4.0 * X + np.cross(N, X), np.zeros(3), X, DT, 0.4, N, play_force=3.0)
+    assert not np.all(np.isfinite(ctrl.next_direction(inp)))  # "bad_command" there

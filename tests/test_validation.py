@@ -255,3 +255,17 @@ def test_settings_reach_the_run_and_bad_values_fail_before_moving() -> None:
         run(bad)
     with pytest.raises(UnknownNameError):
         RunSpec(overrides=(("executor__treshold", 1.0),))
+
+
+def test_errors_survive_pickling_between_processes() -> None:
+    """A worker process's validation error reaches the parent intact (a process pool pickles
+    it); one that cannot be rebuilt breaks the whole pool instead."""
+    import pickle
+
+    from constraint_aware.errors import ConfigError, UnknownNameError
+
+    err = pickle.loads(pickle.dumps(ConfigError("ProbeConfig.amplitude", 0.5, "in [0.0001, 0.02]")))
+    assert isinstance(err, ConfigError) and err.field == "ProbeConfig.amplitude"
+    assert str(err) == "ProbeConfig.amplitude = 0.5: must be in [0.0001, 0.02]"
+    name = pickle.loads(pickle.dumps(UnknownNameError("task", "drawer", ["door-opening"])))
+    assert isinstance(name, UnknownNameError) and name.valid == ["door-opening"]

@@ -29,6 +29,10 @@ class ConfigError(InvalidInputError):
         self.valid = valid
         super().__init__(f"{field} = {value!r}: must be {valid}")
 
+    def __reduce__(self) -> tuple[type, tuple[str, object, str]]:
+        # rebuilt from its fields: an error raised in a worker process reaches the parent
+        return (type(self), (self.field, self.value, self.valid))
+
 
 class UnknownNameError(CapError, KeyError):
     """A name (task, controller, preset, backend) is not one of the valid names."""
@@ -38,6 +42,9 @@ class UnknownNameError(CapError, KeyError):
         self.name = name
         self.valid = sorted(valid)
         super().__init__(f"unknown {kind} {name!r}; valid names: {', '.join(self.valid)}")
+
+    def __reduce__(self) -> tuple[type, tuple[str, str, list[str]]]:
+        return (type(self), (self.kind, self.name, self.valid))
 
     def __str__(self) -> str:  # KeyError would quote the whole message
         return str(self.args[0])

@@ -49,9 +49,10 @@ from constraint_aware.control.controllers import (
     make_controller,
 )
 from constraint_aware.control.executor import Executor
+from constraint_aware.control.probe import probed_settings
 from constraint_aware.control.record import RunRecord, StepRecord
 from constraint_aware.control.robot import reported_stiffness
-from constraint_aware.control.simulate import RunSpec, probe, probed_settings
+from constraint_aware.control.simulate import RunSpec, probe
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.figio import new_figure, save_figure
 from constraint_aware.geometry import FloatArray, turn_vector, unit
@@ -414,6 +415,8 @@ def run_variant(
         ctrl = VARIANTS[variant](policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
     stiffness, _ = reported_stiffness(sim)  # as the executor takes it
+    if cfg.stiffness is not None:  # measured by the probe
+        stiffness = cfg.stiffness
     step_force = None if stiffness is None else stiffness * cfg.step_length
     label = variant + SETTLED_SUFFIX if settled else variant
     return diagnose(record, cond, label, seed, normal, path_turn, step_force)

@@ -11,8 +11,19 @@ from constraint_aware.control.controllers import (
     DirectionController,
     make_controller,
 )
-from constraint_aware.control.executor import Executor, ExecutorConfig, command_jump_bound
-from constraint_aware.control.probe import PROBE_VERDICTS, ProbeConfig, ProbeResult, probe_sensor
+from constraint_aware.control.executor import (
+    Executor,
+    ExecutorConfig,
+    command_jump_bound,
+    max_grasp_play,
+)
+from constraint_aware.control.probe import (
+    PROBE_VERDICTS,
+    ProbeConfig,
+    ProbeResult,
+    probe_sensor,
+    probed_settings,
+)
 from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord, StepRecord
 from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench, reported_stiffness
 from constraint_aware.control.settings import Settings, parse_settings
@@ -38,7 +49,9 @@ __all__ = [
     "Wrench",
     "command_jump_bound",
     "make_controller",
+    "max_grasp_play",
     "parse_settings",
     "probe_sensor",
+    "probed_settings",
     "reported_stiffness",
 ]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, replace
 from typing import Protocol
@@ -243,15 +244,23 @@ class SteadyDirection(_Base):
     def next_direction(self, inp: ControlInput) -> FloatArray:
         cfg = self.config
         d = np.asarray(inp.direction, dtype=float)
-        proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
-        if proposed.shape != (3,) or not np.all(np.isfinite(proposed)):
-            return proposed  # the executor stops on it ("bad_command"), naming it
         extra = None  # the play compensation's part of this step's proposed turn
-        if cfg.play_compensation and not self._play_used:
-            compensated = self._compensate_play(inp)
-            if compensated is not None:
-                extra = turn_vector(unit(proposed), unit(compensated))
-                proposed = compensated
+        played = self._play_input(inp) if cfg.play_compensation and not self._play_used else None
+        if played is None:
+            proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
+        else:
+            # the reading as it is is asked of a copy, so that the inner controller's own state
+            # (a history policy's previous step, an integrator) advances once, with the
+            # reading that drives the move
+            raw = np.asarray(copy.deepcopy(self.inner).next_direction(inp), dtype=float)
+            proposed = np.asarray(self.inner.next_direction(played), dtype=float)
+            if not _finite_direction(raw):
+                return raw  # the executor stops on it ("bad_command"), naming it
+            if _finite_direction(proposed):
+                extra = turn_vector(unit(raw), unit(proposed))
+                self._play_used = True
+        if not _finite_direction(proposed):
+            return proposed  # the executor stops on it ("bad_command"), naming it
         turn = turn_vector(d, unit(proposed))
         size = float(np.linalg.norm(turn))
         pending, self._pending_extra = self._pending_extra, None
@@ -268,15 +277,15 @@ class SteadyDirection(_Base):
             self._last_turn = turn
         if cfg.overshoot_damping:
             turn = self.gain * turn
-        scale = self.gain if cfg.overshoot_damping else 1.0
+        ramp = 1.0
         if cfg.confidence_ramp:
             ramp = _confidence(float(np.linalg.norm(inp.force)), inp.threshold)
-            turn, scale = turn * ramp, scale * ramp
-        if extra is not None:
-            self._pending_extra = scale * extra  # as applied
-        if take_back:
+            turn = turn * ramp
+        if extra is not None:  # as applied
+            self._pending_extra = (self.gain if cfg.overshoot_damping else 1.0) * ramp * extra
+        if take_back:  # as far as this reading is trusted (a reading near the band is noise)
             assert pending is not None
-            turn = turn - pending
+            turn = turn - ramp * pending
         normal = inp.workplane_normal
         known = cfg.rotation_feedforward and self.rotation_rate is not None and normal is not None
         per_step = np.zeros(3)
@@ -293,11 +302,11 @@ class SteadyDirection(_Base):
             self._rotation = Rotation.from_rotvec(per_step if known else self._smoothed)
         return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
 
-    def _compensate_play(self, inp: ControlInput) -> FloatArray | None:
-        """The inner controller's proposal for the reading with the play's force added across
-        d (SteadyConfig.play_compensation), or None when this reading is not compensated: no
-        play force or workplane known, or no force across d above the dead band. The inner
-        controller is asked a second time for this one step of the run."""
+    def _play_input(self, inp: ControlInput) -> ControlInput | None:
+        """The reading with the play's force added across d, on the side the force across d
+        points to (SteadyConfig.play_compensation), or None when this reading is not
+        compensated: no play force or workplane known, or no force across d above the dead
+        band."""
         normal = inp.workplane_normal
         if not inp.play_force or normal is None:
             return None
@@ -306,12 +315,11 @@ class SteadyDirection(_Base):
         across = float(force @ across_dir)
         if abs(across) <= inp.threshold:
             return None
-        self._play_used = True
-        added = math.copysign(inp.play_force, across) * across_dir
-        proposed = np.asarray(self.inner.next_direction(replace(inp, force=force + added)))
-        if proposed.shape != (3,) or not np.all(np.isfinite(proposed)):
-            return None
-        return proposed
+        return replace(inp, force=force + math.copysign(inp.play_force, across) * across_dir)
+
+
+def _finite_direction(v: FloatArray) -> bool:
+    return v.shape == (3,) and bool(np.all(np.isfinite(v)))
 
 
 def _confidence(force_norm: float, threshold: float) -> float:

@@ -137,6 +137,13 @@ SELF_CHECK_CONFIRM_COS = 0.5
 CONFIRM_LAG_SHARE = 0.5
 
 
+def max_grasp_play(step_length: float) -> float:
+    """[m] The most grasp play the executor accepts: half a step. More would hide the
+    constraint for most of every step (a step along d meets the constraint only when the
+    error passes asin(play / step), 30 deg at half a step)."""
+    return 0.5 * step_length
+
+
 @dataclass(frozen=True)
 class ExecutorConfig:
     """How the loop runs. Units in brackets. Validated at construction (ConfigError names the
@@ -193,7 +200,8 @@ class ExecutorConfig:
     # used instead of the robot's `translational_stiffness` (e.g. measured by
     # control.probe.probe_sensor); None: the robot's report
     grasp_play: float = 0.0  # [m] play in the grasp across the path (control.probe measures
-    # it); the controller is told the force it hides, stiffness x play (ControlInput.play_force)
+    # it), at most `max_grasp_play` (half a step); the controller is told the force it hides,
+    # stiffness x play (ControlInput.play_force)
 
     def __post_init__(self) -> None:
         name = "ExecutorConfig."
@@ -229,8 +237,9 @@ class ExecutorConfig:
                 name + "stiffness", self.stiffness, low=0, low_open=True, high=1e6, unit="N/m"
             )
         check_number(
-            name + "grasp_play", self.grasp_play, low=0, high=0.5 * self.step_length, unit="m"
-        )
+            name + "grasp_play", self.grasp_play, low=0, high=max_grasp_play(self.step_length),
+            unit="m",
+        )  # fmt: skip
         if self.rotation_radius is not None:
             check_number(
                 name + "rotation_radius", self.rotation_radius, low=0, low_open=True, unit="m"

@@ -47,7 +47,11 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.control.executor import SELF_CHECK_MIN_FORCE
+from constraint_aware.control.executor import (
+    SELF_CHECK_MIN_FORCE,
+    ExecutorConfig,
+    max_grasp_play,
+)
 from constraint_aware.control.robot import (
     Robot,
     reported_stiffness,
@@ -104,6 +108,8 @@ MOVED_SHARE = 0.1
 #: A deep push measures the play only when its |dF| exceeds the shallow push's by at least
 #: this x min_force (else the line through the two is not determined).
 PLAY_FORCE_SPREAD = 1.0
+#: [m] the deepest push the probe makes (ProbeConfig.amplitude and play_amplitude)
+MAX_PUSH = 0.02
 
 
 @dataclass(frozen=True)
@@ -125,7 +131,7 @@ class ProbeConfig:
 
     def __post_init__(self) -> None:
         n = "ProbeConfig."
-        check_number(n + "amplitude", self.amplitude, low=1e-4, high=0.02, unit="m")
+        check_number(n + "amplitude", self.amplitude, low=1e-4, high=MAX_PUSH, unit="m")
         check_int(n + "directions", self.directions, low=2)
         check_number(n + "settle_tolerance", self.settle_tolerance, low=0, high=1, low_open=True)
         check_int(n + "max_settle_periods", self.max_settle_periods, low=MIN_SETTLE_PERIODS)
@@ -137,7 +143,7 @@ class ProbeConfig:
         )  # fmt: skip
         if self.play_amplitude is not None:
             check_number(
-                n + "play_amplitude", self.play_amplitude, low=self.amplitude, high=0.02,
+                n + "play_amplitude", self.play_amplitude, low=self.amplitude, high=MAX_PUSH,
                 low_open=True, unit="m",
             )  # fmt: skip
 
@@ -158,6 +164,7 @@ class ProbePush:
     push_stiffness: float  # [N/m] -dF . direction / amplitude: arm, grasp and object in series
     give: float | None  # [m] when judged: how far the hand moved against the force it met,
     # i.e. the play in the grasp plus the grasp's and the object's own compliance
+    shallow: int | None = None  # a deep push: the index of its push in `ProbeResult.pushes`
 
 
 @dataclass
@@ -245,25 +252,14 @@ def probe_sensor(
             )
         result.force_offset = base_force.tolist()
         base = (base_force, base_stretch, base_pose)
-        for u in push_directions(cfg.directions, normal):
+        for i, u in enumerate(push_directions(cfg.directions, normal)):
             base = _push_and_return(
-                robot, reader, home, u, cfg.amplitude, base, normal, cfg, result.pushes
-            )
-        # the deep pushes after the whole ring, so that they cannot disturb the pushes the
-        # verdict judges (an arm with joint friction keeps some of a push's deflection)
-        deep = cfg.play_amplitude
-        for push in [p for p in result.pushes if p.judged] if deep is not None else []:
-            assert deep is not None
-            u = np.asarray(push.direction)
-            try:
-                base = _push_and_return(
-                    robot, reader, home, u, deep, base, normal, cfg, result.play_pushes
-                )
-            except _Stop as stop:
-                if stop.verdict != "unsteady":
-                    raise
-                result.notes.append(f"play not measured: {stop}")
-                break
+                robot, reader, home, u, cfg.amplitude, base, normal, cfg, result.pushes,
+                f"push {i + 1}",
+            )  # fmt: skip
+        _verdict(result, cfg)
+        if cfg.play_amplitude is not None and result.verdict in STIFFNESS_VERDICTS:
+            _measure_play(robot, reader, home, base, normal, cfg, result)
     except _Stop as stop:
         result.verdict, result.reason = stop.verdict, str(stop)
         _restore(robot, home, result)
@@ -279,8 +275,49 @@ def probe_sensor(
         raise
     # completed: the setpoint is back where it was, so the hand holds the grasp as before the
     # probe (hold() would move the setpoint onto the measured pose and release the preload)
-    _verdict(result, cfg)
     return result
+
+
+def _measure_play(
+    robot: Robot,
+    reader: _Reader,
+    home: Pose,
+    base: tuple[FloatArray, FloatArray, Pose],
+    normal: FloatArray | None,
+    cfg: ProbeConfig,
+    result: ProbeResult,
+) -> None:
+    """The deep pushes and `result.play` (module docstring). They come after the ring and its
+    verdict, so that they cannot change them (an arm with joint friction keeps some of a
+    push's deflection). A deep push whose force, extrapolated from its shallow push past the
+    give, would pass the force limit is not made; one that leaves the setpoint reading
+    unsteady ends the measurement with a note and no play (the grasp or the object moved)."""
+    deep = cfg.play_amplitude
+    assert deep is not None
+    for i, push in enumerate(result.pushes):
+        if not push.judged or push.give is None:
+            continue
+        # past the give the force grows at least as fast as the push: a linear extrapolation
+        # from the push's stretch would understate a grasp with play
+        free = min(push.give, 0.9 * push.amplitude)
+        predicted = math.hypot(*push.force_change) * (deep - free) / (push.amplitude - free)
+        if predicted > cfg.force_limit:
+            result.notes.append(
+                f"deep push {i + 1} not made: about {predicted:.1f} N expected, above the "
+                f"{cfg.force_limit:g} N limit"
+            )
+            continue
+        try:
+            base = _push_and_return(
+                robot, reader, home, np.asarray(push.direction), deep, base, normal, cfg,
+                result.play_pushes, f"deep push {i + 1}", shallow=i,
+            )  # fmt: skip
+        except _Stop as stop:
+            if stop.verdict != "unsteady":
+                raise
+            result.notes.append(f"play not measured: {stop}")
+            return
+    result.play = grasp_play(result.pushes, result.play_pushes, cfg.min_force)
 
 
 def _push_and_return(
@@ -293,6 +330,8 @@ def _push_and_return(
     normal: FloatArray | None,
     cfg: ProbeConfig,
     into: list[ProbePush],
+    label: str,
+    shallow: int | None = None,
 ) -> tuple[FloatArray, FloatArray, Pose]:
     """One push `amplitude` along u from the setpoint `home` and back; the push, compared with
     the setpoint reading `base` (force, stretch, pose) before it, is appended to `into` before
@@ -302,23 +341,23 @@ def _push_and_return(
     base_force, base_stretch, base_pose = base
     robot.command_pose(Pose(home.position + amplitude * u, home.orientation))
     force, stretch, pose, settled = reader.settle_push(base_force)
-    into.append(
-        _push(u, amplitude, force - base_force, stretch - base_stretch, pose, base_pose, settled,
-              normal, cfg)
-    )  # fmt: skip
+    push = _push(u, amplitude, force - base_force, stretch - base_stretch, pose, base_pose,
+                 settled, normal, cfg)  # fmt: skip
+    push.shallow = shallow
+    into.append(push)
     robot.command_pose(home)
     after, after_stretch, after_pose, back = reader.settle_push(base_force)
     if not back:
         raise _Stop(
             "unsteady",
-            f"the hand did not settle back at the setpoint after a push within "
+            f"the hand did not settle back at the setpoint after {label} within "
             f"{cfg.max_settle_periods} periods",
         )
     drift = float(np.linalg.norm(in_plane(after - base_force, normal)))
     if drift > DRIFT_SHARE * cfg.min_force:
         raise _Stop(
             "unsteady",
-            f"the reading at the setpoint changed by {drift:.2f} N over a push "
+            f"the reading at the setpoint changed by {drift:.2f} N over {label} "
             f"(at most {DRIFT_SHARE * cfg.min_force:.2f} N)",
         )
     return after, after_stretch, after_pose
@@ -471,7 +510,6 @@ def _verdict(result: ProbeResult, cfg: ProbeConfig) -> None:
     stiffness = float(np.median([p.arm_stiffness for p in judged if p.arm_stiffness]))
     result.median_cos, result.arm_stiffness = cos, stiffness
     result.give = float(np.median([p.give for p in judged if p.give is not None]))
-    result.play = grasp_play(result.pushes, result.play_pushes, cfg.min_force)
     counted = f"median cos(dF, stretch) {cos:+.2f} over {len(judged)} pushes"
     if cos >= PROBE_CONVENTION_COS:
         result.verdict, result.reason = "flipped_sign", counted
@@ -494,21 +532,37 @@ def _verdict(result: ProbeResult, cfg: ProbeConfig) -> None:
 def grasp_play(
     pushes: list[ProbePush], deep_pushes: list[ProbePush], min_force: float
 ) -> float | None:
-    """[m] The grasp's play from pairs of judged pushes along one direction at two depths: the
-    intercept p of give = p + |dF| / k_object, clipped to [0, the shallow push's give]; the
-    median over the pairs, None without a pair whose forces differ by PLAY_FORCE_SPREAD x
-    min_force."""
+    """[m] The grasp's play from pairs of judged pushes along one direction at two depths (a
+    deep push's `shallow` index names its pair): the intercept p of give = p + |dF| /
+    k_object, at most the shallow push's give; the median over the pairs. Pairs whose forces
+    differ by less than PLAY_FORCE_SPREAD x min_force, or whose give falls as the force grows
+    (no positive compliance: not the model), are skipped; None without a pair."""
     plays = []
     for deep in deep_pushes:
-        shallow = next((p for p in pushes if p.judged and p.direction == deep.direction), None)
-        if shallow is None or not deep.judged or shallow.give is None or deep.give is None:
+        if deep.shallow is None or not 0 <= deep.shallow < len(pushes):
+            continue
+        shallow = pushes[deep.shallow]
+        if not (shallow.judged and deep.judged) or shallow.give is None or deep.give is None:
             continue
         f1, f2 = math.hypot(*shallow.force_change), math.hypot(*deep.force_change)
-        if f2 - f1 < PLAY_FORCE_SPREAD * min_force:
+        if f2 - f1 < PLAY_FORCE_SPREAD * min_force or deep.give < shallow.give:
             continue
         compliance = (deep.give - shallow.give) / (f2 - f1)  # [m/N] 1 / k_object
-        plays.append(min(max(shallow.give - f1 * max(compliance, 0.0), 0.0), shallow.give))
+        plays.append(min(max(shallow.give - f1 * compliance, 0.0), shallow.give))
     return float(np.median(plays)) if plays else None
+
+
+def probed_settings(probed: ProbeResult, config: ExecutorConfig) -> dict[str, float]:
+    """The ExecutorConfig fields a setup probe measured, for `dataclasses.replace(config,
+    **...)`: the arm stiffness the wrist sees and the grasp's play (capped at the executor's
+    bound for `config`'s step, `max_grasp_play`), when the wrench convention holds; none
+    otherwise."""
+    if probed.verdict not in STIFFNESS_VERDICTS or not probed.arm_stiffness:
+        return {}
+    out = {"stiffness": probed.arm_stiffness}
+    if probed.play is not None:
+        out["grasp_play"] = min(probed.play, max_grasp_play(config.step_length))
+    return out
 
 
 def check_force_limit(config: ProbeConfig, limit: float) -> ProbeConfig:

@@ -19,11 +19,11 @@ from constraint_aware.control.controllers import (
 from constraint_aware.control.executor import Executor, ExecutorConfig, orient_normal
 from constraint_aware.control.probe import (
     CONVENTION_VERDICTS,
-    STIFFNESS_VERDICTS,
     ProbeConfig,
     ProbeResult,
     check_force_limit,
     probe_sensor,
+    probed_settings,
 )
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import Robot
@@ -204,18 +204,6 @@ def probe(
     return probe_sensor(robot, task.workplane_normal, config), sim
 
 
-def probed_settings(probed: ProbeResult, config: ExecutorConfig) -> dict[str, float]:
-    """The ExecutorConfig fields a setup probe measured: the arm stiffness the wrist sees and
-    the grasp's play (capped at the executor's bound, half a step), when the wrench
-    convention holds; none otherwise."""
-    if probed.verdict not in STIFFNESS_VERDICTS or not probed.arm_stiffness:
-        return {}
-    out = {"stiffness": probed.arm_stiffness}
-    if probed.play is not None:
-        out["grasp_play"] = min(probed.play, 0.5 * config.step_length)
-    return out
-
-
 def _probe_config(task: TaskConfig) -> ProbeConfig:
     """The probe's defaults, its force limit no higher than the task's."""
     default = ProbeConfig()
@@ -268,10 +256,11 @@ def run(
         robot = wrap(robot)  # type: ignore[arg-type]
     cfg = executor_config(task, spec.torque_policy)
     changes = {**spec.executor_overrides, **(executor_overrides or {})}
-    if probed is not None:
-        changes = {**probed_settings(probed, cfg), **changes}
     if changes:
         cfg = dataclasses.replace(cfg, **changes)  # type: ignore[arg-type]
+    if probed is not None:  # what the probe measured, unless set explicitly
+        measured = {k: v for k, v in probed_settings(probed, cfg).items() if k not in changes}
+        cfg = dataclasses.replace(cfg, **measured)  # type: ignore[arg-type]
     assert cfg.workplane_normal is not None
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     if initial_direction is not None:
