@@ -291,7 +291,8 @@ def _measure_play(
     verdict, so that they cannot change them (an arm with joint friction keeps some of a
     push's deflection). A deep push whose force, extrapolated from its shallow push past the
     give, would pass the force limit is not made; one that leaves the setpoint reading
-    unsteady ends the measurement with a note and no play (the grasp or the object moved)."""
+    unsteady (the grasp or the object moved) ends the deep pushes with a note, and the play
+    comes from the pairs before it (None without one)."""
     deep = cfg.play_amplitude
     assert deep is not None
     for i, push in enumerate(result.pushes):
@@ -315,8 +316,11 @@ def _measure_play(
         except _Stop as stop:
             if stop.verdict != "unsteady":
                 raise
-            result.notes.append(f"play not measured: {stop}")
-            return
+            # the grasp or the object moved on this push: it is not used, nor any after it
+            if result.play_pushes and result.play_pushes[-1].shallow == i:
+                result.play_pushes.pop()
+            result.notes.append(f"deep pushes stopped, {stop}; the play from the ones before")
+            break
     result.play = grasp_play(result.pushes, result.play_pushes, cfg.min_force)
 
 
