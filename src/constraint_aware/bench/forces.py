@@ -578,8 +578,11 @@ def plot_paired_differences(pairs: Iterable[PairedDifference], path: str | Path)
         ax.errorbar(p.mean_difference_N, y, xerr=xerr, fmt="o", color=color, capsize=3)
     ax.axvline(0.0, color="black", lw=0.8)
     ax.set_yticks(range(len(pairs)))
-    labels = [
-        f"{p.axis}: {p.task}" + (SETTLED_SUFFIX if p.variant.endswith(SETTLED_SUFFIX) else "")
+    several = len({p.variant.removesuffix(SETTLED_SUFFIX) for p in pairs}) > 1
+    labels = [  # the compared variant named when the figure holds more than one
+        (f"{p.variant.removesuffix(SETTLED_SUFFIX)}:\n" if several else "")
+        + f"{p.axis}: {p.task}"
+        + (SETTLED_SUFFIX if p.variant.endswith(SETTLED_SUFFIX) else "")
         for p in reversed(pairs)
     ]
     ax.set_yticklabels(labels, fontsize=7)
