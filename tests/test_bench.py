@@ -160,10 +160,17 @@ def test_policy_section_in_results_and_report(bench_dir: Path) -> None:
     section = PolicySection.from_dict(results["policy_section"])
     assert section.threshold_N == threshold_from_noise(section.sensor_noise_N)
     controllers = {c.controller for c in section.paper_offsets}
-    assert controllers == {"default", "default (raw)", "paper", "classical", "projection"}
+    assert controllers == {
+        "default",
+        "default + probe",
+        "default (raw)",
+        "paper",
+        "classical",
+        "projection",
+    }
     assert (
-        "## Policies: default vs default (raw) vs paper vs classical vs projection"
-        in (bench_dir / "report.md").read_text()
+        "## Policies: default vs default + probe vs default (raw) vs paper vs classical vs "
+        "projection" in (bench_dir / "report.md").read_text()
     )
 
 

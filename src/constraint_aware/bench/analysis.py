@@ -21,12 +21,14 @@ from constraint_aware import deadband
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor, ExecutorConfig
+from constraint_aware.control.probe import probed_settings
 from constraint_aware.control.simulate import (
     NoisySensorSim,
     RunSpec,
     build_task,
     controller_geometry,
     executor_config,
+    probe,
 )
 from constraint_aware.geometry import FloatArray, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -37,6 +39,9 @@ from constraint_aware.spatial import Wrench
 POLICY_SECTION_CONTROLLERS: dict[str, tuple[str, str | None]] = {
     # the default policy as the library runs it (controller "policy": inside SteadyDirection)
     "default": ("policy", "default"),
+    # the same after a setup probe on a twin of the task (`cap run --probe`): the arm stiffness
+    # the wrist sees and the grasp's play (PROBED_LABELS)
+    "default + probe": ("policy", "default"),
     # the same policy alone, and the paper's as published: the paper's rule d + pi(s)
     "default (raw)": ("policy-raw", "default"),
     "paper": ("policy-raw", "paper"),
@@ -45,6 +50,11 @@ POLICY_SECTION_CONTROLLERS: dict[str, tuple[str, str | None]] = {
 }
 #: [m] the object has "moved" (the grasp preload released) beyond this progress.
 PRELOAD_RELEASE_PROGRESS = 0.002
+
+
+#: The labels whose runs probe a twin of the task at setup first (control.simulate.probe)
+#: and run with what it measured (control.probe.probed_settings).
+PROBED_LABELS = ("default + probe",)
 
 
 @dataclass(frozen=True)
@@ -173,6 +183,9 @@ def run_condition(
         policy = ConstraintAwarePolicy.load(policy_name)
     prep = prepare_condition(cond, spec, threshold)
     sim, cfg, normal, d0, rate = prep.sim, prep.config, prep.normal, prep.d0, prep.rotation_rate
+    if controller in PROBED_LABELS:
+        probed, _twin = probe(spec)
+        cfg = dataclasses.replace(cfg, **probed_settings(probed, cfg))  # type: ignore[arg-type]
     ctrl = make_controller(name, policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
     return RunResult(

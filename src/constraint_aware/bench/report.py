@@ -277,9 +277,12 @@ def _table(cells: list[CellSummary], first: str, key: Any) -> list[str]:
 
 
 def policy_section_lines(sec: PolicySection) -> list[str]:
-    """The policy section: the default policy as run (controller "policy") and alone
-    ("policy-raw"), the paper's policy as published, classical, projection."""
-    lines = ["## Policies: default vs default (raw) vs paper vs classical vs projection\n"]
+    """The policy section: the default policy as run (controller "policy"), after a setup
+    probe, and alone ("policy-raw"), the paper's policy as published, classical, projection."""
+    lines = [
+        "## Policies: default vs default + probe vs default (raw) vs paper vs classical vs "
+        "projection\n"
+    ]
     lines.append(
         f"Every controller runs with the dead band derived from the sensor noise "
         f"({_f(sec.sensor_noise_N, 1)} N per axis: {_f(sec.threshold_N, 1)} N), not a hand-set "
@@ -287,6 +290,9 @@ def policy_section_lines(sec: PolicySection) -> list[str]:
         "averaged with its mirror image about the workplane normal, inside SteadyDirection "
         "(docs/forces.md): a confidence ramp on |F|, overshoot damping and, on revolute "
         "joints, the rotation rate v / r the classical controller is also given. "
+        "`default + probe` is the same after a setup probe on a twin of the task (`cap run "
+        "--probe`, control.probe): the arm stiffness the wrist sees and the grasp's play, "
+        "which `policy` adds back on its first reading across d. "
         "`default (raw)` and `paper` are the policies alone (controller `policy-raw`, paper "
         "3.3's d + pi(s)). Cells: successes / runs, median peak |F| [N], mean |F| [N].\n"
     )
