@@ -1,4 +1,5 @@
-"""The bench's policy section alone (issue 9): default, default (raw), paper, classical, projection.
+"""The bench's policy section alone (issue 9): default, default + probe, default (raw), paper,
+classical, projection.
 
     nice -n 10 python benchmarks/policy_section.py [--seeds 20] [--out benchmarks/results]
 

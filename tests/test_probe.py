@@ -364,6 +364,11 @@ def test_a_run_after_the_probe_uses_the_measured_stiffness() -> None:
     play = [n for n in record.notes if n.startswith("grasp play ")]
     assert play, record.notes
     assert 1.2 <= float(play[0].split()[2]) <= 1.8  # [mm]
+    # an explicit setting wins over what the probe measured: the compensation turned off
+    spec = RunSpec("drawer-opening", seed=0, probe=True, overrides=(("executor__grasp_play", 0.0),))
+    off, _sim = run(spec)
+    assert any(n.startswith("stiffness ") for n in off.notes)  # still measured
+    assert not any(n.startswith("grasp play ") for n in off.notes), off.notes
 
 
 def test_a_probe_that_finds_a_flipped_sign_stops_the_run_before_it_moves() -> None:
