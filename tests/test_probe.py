@@ -556,7 +556,7 @@ class CreepingRail(Rail):
         return Wrench(w.force + (3.0 * U if self.slipped else 0.0), w.torque)
 
 
-def test_a_deep_push_that_moves_the_grasp_leaves_the_play_unmeasured() -> None:
+def test_a_deep_push_that_moves_the_grasp_is_not_used_for_the_play() -> None:
     robot = CreepingRail(play=0.001)
     result = probe_sensor(robot, N)
     assert result.verdict == "consistent", result.reason  # the ring's verdict stands

@@ -296,3 +296,10 @@ def test_a_non_finite_proposal_on_the_compensated_step_reaches_the_executor() ->
     ctrl.reset(X)
     inp = ControlInput(-4.0 * X + np.cross(N, X), np.zeros(3), X, DT, 0.4, N, play_force=3.0)
     assert not np.all(np.isfinite(ctrl.next_direction(inp)))  # "bad_command" there
+
+
+def test_a_play_force_within_the_dead_band_is_not_added() -> None:
+    """0.3 N of play force against a 0.4 N band is not told apart from noise."""
+    cfg = SteadyConfig(rotation_feedforward=False)
+    turns = _across_run(SteadyDirection(AcrossGain(2.0), config=cfg), [1.0, 1.0], play_force=0.3)
+    assert turns == pytest.approx([2.0, 2.0])

@@ -21,7 +21,7 @@ from constraint_aware import deadband
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor, ExecutorConfig
-from constraint_aware.control.probe import probed_settings
+from constraint_aware.control.probe import CONVENTION_VERDICTS, probed_settings
 from constraint_aware.control.simulate import (
     NoisySensorSim,
     RunSpec,
@@ -185,6 +185,8 @@ def run_condition(
     sim, cfg, normal, d0, rate = prep.sim, prep.config, prep.normal, prep.d0, prep.rotation_rate
     if controller in PROBED_LABELS:
         probed, _twin = probe(spec)
+        if probed.verdict in CONVENTION_VERDICTS:  # cap run --probe would not start: no result
+            raise RuntimeError(f"{controller}: the setup probe found {probed.verdict}")
         cfg = dataclasses.replace(cfg, **probed_settings(probed, cfg))  # type: ignore[arg-type]
     ctrl = make_controller(name, policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})

@@ -288,11 +288,13 @@ def _measure_play(
     result: ProbeResult,
 ) -> None:
     """The deep pushes and `result.play` (module docstring). They come after the ring and its
-    verdict, so that they cannot change them (an arm with joint friction keeps some of a
-    push's deflection). A deep push whose force, extrapolated from its shallow push past the
-    give, would pass the force limit is not made; one that leaves the setpoint reading
-    unsteady (the grasp or the object moved) ends the deep pushes with a note, and the play
-    comes from the pairs before it (None without one)."""
+    verdict, so that they cannot disturb the pushes the verdict judges (an arm with joint
+    friction keeps some of a push's deflection). A deep push whose force, extrapolated from
+    its shallow push past the give, would pass the force limit is not made; one that leaves
+    the setpoint reading unsteady (the grasp or the object moved) ends the deep pushes with a
+    note, and the play comes from the pairs before it (None without one). A safety stop
+    during a deep push (`force_limit`, `bad_reading`) still stops the probe and replaces the
+    verdict: the extrapolation is a guard, not a promise."""
     deep = cfg.play_amplitude
     assert deep is not None
     for i, push in enumerate(result.pushes):
@@ -300,7 +302,7 @@ def _measure_play(
             continue
         # past the give the force grows at least as fast as the push: a linear extrapolation
         # from the push's stretch would understate a grasp with play
-        free = min(push.give, 0.9 * push.amplitude)
+        free = min(max(push.give, 0.0), 0.9 * push.amplitude)
         predicted = math.hypot(*push.force_change) * (deep - free) / (push.amplitude - free)
         if predicted > cfg.force_limit:
             result.notes.append(
