@@ -21,14 +21,13 @@ from constraint_aware import deadband
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor, ExecutorConfig
-from constraint_aware.control.probe import CONVENTION_VERDICTS, probed_settings
 from constraint_aware.control.simulate import (
     NoisySensorSim,
     RunSpec,
     build_task,
     controller_geometry,
     executor_config,
-    probe,
+    probed_config,
 )
 from constraint_aware.geometry import FloatArray, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -52,8 +51,8 @@ POLICY_SECTION_CONTROLLERS: dict[str, tuple[str, str | None]] = {
 PRELOAD_RELEASE_PROGRESS = 0.002
 
 
-#: The labels whose runs probe a twin of the task at setup first (control.simulate.probe)
-#: and run with what it measured (control.probe.probed_settings).
+#: The labels whose runs probe a twin of the task at setup first and run with what it
+#: measured (control.simulate.probed_config).
 PROBED_LABELS = ("default + probe",)
 
 
@@ -184,10 +183,7 @@ def run_condition(
     prep = prepare_condition(cond, spec, threshold)
     sim, cfg, normal, d0, rate = prep.sim, prep.config, prep.normal, prep.d0, prep.rotation_rate
     if controller in PROBED_LABELS:
-        probed, _twin = probe(spec)
-        if probed.verdict in CONVENTION_VERDICTS:  # cap run --probe would not start: no result
-            raise RuntimeError(f"{controller}: the setup probe found {probed.verdict}")
-        cfg = dataclasses.replace(cfg, **probed_settings(probed, cfg))  # type: ignore[arg-type]
+        cfg = probed_config(spec, cfg)
     ctrl = make_controller(name, policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
     return RunResult(

@@ -49,10 +49,9 @@ from constraint_aware.control.controllers import (
     make_controller,
 )
 from constraint_aware.control.executor import Executor
-from constraint_aware.control.probe import probed_settings
 from constraint_aware.control.record import RunRecord, StepRecord
 from constraint_aware.control.robot import reported_stiffness
-from constraint_aware.control.simulate import RunSpec, probe
+from constraint_aware.control.simulate import RunSpec, probed_config
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.figio import new_figure, save_figure
 from constraint_aware.geometry import FloatArray, turn_vector, unit
@@ -214,8 +213,8 @@ def _wrapped(kind: str) -> ControllerFactory:
 
 _OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False)
 
-#: The variant that probes a twin of its condition at setup (control.simulate.probe) and
-#: runs with what the probe measured (`probed_settings`), as `cap run --probe` does.
+#: The variant that probes a twin of its condition at setup and runs with what the probe
+#: measured (control.simulate.probed_config), as `cap run --probe` does.
 PROBED = "steady + probe"
 
 #: label -> controller factory. "default" is the default policy alone (controller "policy-raw"),
@@ -400,8 +399,7 @@ def run_variant(
     if variant == PROBED:
         if settled:
             raise ValueError(f"{PROBED!r} runs at the robot's own control period only")
-        probed, _twin = probe(spec)
-        cfg = dataclasses.replace(cfg, **probed_settings(probed, cfg))  # type: ignore[arg-type]
+        cfg = probed_config(spec, cfg)
     radius = cfg.rotation_radius if rate is not None else None
     path_turn = math.degrees(cfg.step_length / radius) if radius else 0.0
     ctrl: DirectionController

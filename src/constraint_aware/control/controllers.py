@@ -275,14 +275,13 @@ class SteadyDirection(_Base):
             else:
                 self.gain = min(self.gain * cfg.recovery_factor, 1.0)
             self._last_turn = turn
-        if cfg.overshoot_damping:
-            turn = self.gain * turn
+        gain = self.gain if cfg.overshoot_damping else 1.0
         ramp = 1.0
         if cfg.confidence_ramp:
             ramp = _confidence(float(np.linalg.norm(inp.force)), inp.threshold)
-            turn = turn * ramp
+        turn = gain * turn * ramp  # this order: the same floats as the gain, then the ramp
         if extra is not None:  # as applied
-            self._pending_extra = (self.gain if cfg.overshoot_damping else 1.0) * ramp * extra
+            self._pending_extra = gain * ramp * extra
         if take_back:  # as far as this reading is trusted (a reading near the band is noise)
             assert pending is not None
             turn = turn - ramp * pending

@@ -99,9 +99,9 @@ class RunSpec:
     # at the wrist replaces the robot's report (kept, with a note, when the probe cannot
     # measure it), the grasp's measured play goes to ExecutorConfig.grasp_play
     # (`probed_settings`), and a probe that finds the wrench convention wrong stops the run
-    # before it
-    # moves (`sensor_convention`). On a real arm: probe, re-grasp, run. Probing the object
-    # and then running without re-grasping disturbs the grasp (benchmarks/probe.py)
+    # before it moves (`sensor_convention`). On a real arm: probe, re-grasp, run. Probing
+    # the object and then running without re-grasping disturbs the grasp
+    # (benchmarks/probe.py)
 
     def with_settings(self, settings: Settings) -> RunSpec:
         """This spec with `--set` settings (control.settings.parse_settings) added: task
@@ -202,6 +202,16 @@ def probe(
     else:
         check_force_limit(config, task.force_limit)
     return probe_sensor(robot, task.workplane_normal, config), sim
+
+
+def probed_config(spec: RunSpec, config: ExecutorConfig) -> ExecutorConfig:
+    """`config` with what a setup probe on a twin of the spec's task measured
+    (`probed_settings`), for experiments that prepare their own run; a probe that finds the
+    wrench convention wrong raises RuntimeError (`run` would stop before the first move)."""
+    probed, _twin = probe(spec)
+    if probed.verdict in CONVENTION_VERDICTS:
+        raise RuntimeError(f"the setup probe found {probed.verdict}: {probed.reason}")
+    return dataclasses.replace(config, **probed_settings(probed, config))  # type: ignore[arg-type]
 
 
 def _probe_config(task: TaskConfig) -> ProbeConfig:
