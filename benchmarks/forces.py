@@ -59,7 +59,14 @@ from constraint_aware.sim.tasks import task_config
 
 DIAGNOSED = ("default", "classical", "steady", "steady: stop 17")
 MAP_VARIANTS = ("default", "classical", "steady", "steady: no known rate")
-MAIN_VARIANTS = ("default", "classical", "steady", "steady: stop 17", PROBED)
+MAIN_VARIANTS = (
+    "default",
+    "classical",
+    "steady",
+    "steady: stop 17",
+    "steady: feed-forward at once",
+    PROBED,
+)
 #: the gap study: the library's controller and the classical one, the references, and both
 #: controllers with the settled hand
 GAP_VARIANTS = ("steady", "classical", PROBED, *REFERENCES)

@@ -123,6 +123,29 @@ def test_a_known_rotation_rate_turns_d_between_moves_and_the_hand_every_step() -
         d = nxt
 
 
+@pytest.mark.parametrize("wait", [True, False])
+def test_d_follows_the_known_rotation_only_once_a_reading_has_located_the_path(wait: bool) -> None:
+    rate = 0.01 / DT / 0.5  # [rad/s]
+    cfg = SteadyConfig(wait_for_location=wait)
+    ctrl = SteadyDirection(FixedDirection(), rate, config=cfg)
+    d = X.copy()
+    ctrl.reset(d)
+    step_deg = math.degrees(rate * DT)
+    turns = []
+    # three readings straight against d (the object resisting, nothing across d), then one
+    # with 1 N across d (above the 0.4 N band), then against d again
+    for across in (0.0, 0.0, 0.0, 1.0, 0.0, 0.0):
+        across_dir = np.cross(N, d)
+        f = -3.0 * d + across * across_dir
+        nxt = ctrl.next_direction(ControlInput(f, np.zeros(3), d, DT, 0.4, N))
+        turns.append(_signed_deg(d, nxt))
+        hand = ctrl.hand_rotation()
+        assert hand is not None and np.allclose(hand.as_rotvec(), rate * DT * N)  # always
+        d = nxt
+    expected = [0.0, 0.0, 0.0, step_deg, step_deg, step_deg] if wait else [0.0] + [step_deg] * 5
+    assert turns == pytest.approx(expected)
+
+
 def test_the_hand_is_left_to_the_torque_policy_on_a_fixed_orientation_grasp() -> None:
     ctrl = SteadyDirection(FixedDirection(), 0.2)
     ctrl.reset(X)
