@@ -144,6 +144,11 @@ def test_d_follows_the_known_rotation_only_once_a_reading_has_located_the_path(w
         d = nxt
     expected = [0.0, 0.0, 0.0, step_deg, step_deg, step_deg] if wait else [0.0] + [step_deg] * 5
     assert turns == pytest.approx(expected)
+    # a new run starts unlocated again
+    ctrl.reset(X)
+    for i in range(3):
+        nxt = ctrl.next_direction(ControlInput(-3.0 * X, np.zeros(3), X, DT, 0.4, N))
+        assert _signed_deg(X, nxt) == pytest.approx(0.0 if wait or i == 0 else step_deg)
 
 
 def test_the_hand_is_left_to_the_torque_policy_on_a_fixed_orientation_grasp() -> None:

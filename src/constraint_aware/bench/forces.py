@@ -227,7 +227,8 @@ VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
     "steady": _named("policy"),  # mirrored, inside SteadyDirection: controller "policy"
-    "steady: stop 17": _steady(SteadyConfig(), mirror=False),  # without the mirror average
+    # without the mirror average and feeding the known rotation into d at once
+    "steady: stop 17": _steady(SteadyConfig(wait_for_location=False), mirror=False),
     # stop 22's: the known rotation fed into d from the second reading on, located or not
     "steady: feed-forward at once": _steady(SteadyConfig(wait_for_location=False)),
     "steady: strict reversal": _steady(SteadyConfig(strict_reversal=True)),  # rejected

@@ -175,7 +175,8 @@ class SteadyConfig:
     start estimate, checked by nothing, and is left as it is (the classical controller's t^
     is too): turning it with the path keeps an unknown error as large as it was. Measured on
     the hook hand's door at the paper's offset (docs/forces.md, stop 23): peak 5.08 -> 4.73 N
-    at +15 deg, 4.77 -> 4.80 N at -15 deg.
+    at +15 deg, 4.77 -> 4.80 N at -15 deg. With no dead band (threshold 0) any force across d
+    locates the path, so d follows the rotation from the second reading on, as before.
     """
 
     confidence_ramp: bool = True
