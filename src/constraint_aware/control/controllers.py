@@ -255,7 +255,9 @@ class SteadyDirection(_Base):
         cfg = self.config
         d = np.asarray(inp.direction, dtype=float)
         extra = None  # the play compensation's part of this step's proposed turn
-        played = self._play_input(inp) if cfg.play_compensation and not self._play_used else None
+        across = _across(inp)  # (force [N], direction (3,)) across d, or None
+        compensate = cfg.play_compensation and not self._play_used
+        played = self._play_input(inp, across) if compensate else None
         if played is None:
             proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
         else:
@@ -299,8 +301,7 @@ class SteadyDirection(_Base):
         known = cfg.rotation_feedforward and self.rotation_rate is not None and normal is not None
         per_step = np.zeros(3)
         if not self._located:
-            across = _across_force(inp)
-            self._located = across is not None and abs(across) > inp.threshold
+            self._located = across is not None and abs(across[0]) > inp.threshold
         if known:
             assert self.rotation_rate is not None and normal is not None
             per_step = self.rotation_rate * inp.dt * np.asarray(normal, dtype=float)
@@ -316,31 +317,31 @@ class SteadyDirection(_Base):
             self._rotation = Rotation.from_rotvec(per_step if known else self._smoothed)
         return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
 
-    def _play_input(self, inp: ControlInput) -> ControlInput | None:
+    def _play_input(
+        self, inp: ControlInput, across: tuple[float, FloatArray] | None
+    ) -> ControlInput | None:
         """The reading with the play's force added across d, on the side the force across d
         points to (SteadyConfig.play_compensation), or None when this reading is not
         compensated: no workplane known, no play force above the dead band, or no force
-        across d above the dead band."""
+        across d above the dead band. across: this reading's `_across`."""
         # a play force within the dead band is not told apart from the sensor's noise: adding
         # it only perturbs (the Jaco's 0.05 mm, 0.09 N against a 0.55 N band)
         if not inp.play_force or inp.play_force <= inp.threshold:
             return None
-        across = _across_force(inp)
-        if across is None or abs(across) <= inp.threshold:
+        if across is None or abs(across[0]) <= inp.threshold:
             return None
-        assert inp.workplane_normal is not None
-        across_dir = unit(np.cross(inp.workplane_normal, inp.direction))
-        force = np.asarray(inp.force, dtype=float)
-        return replace(inp, force=force + math.copysign(inp.play_force, across) * across_dir)
+        across_force, across_dir = across
+        added = math.copysign(inp.play_force, across_force) * across_dir
+        return replace(inp, force=np.asarray(inp.force, dtype=float) + added)
 
 
-def _across_force(inp: ControlInput) -> float | None:
-    """[N] the reading's force across d in the workplane, signed along n x d; None without a
-    known workplane."""
+def _across(inp: ControlInput) -> tuple[float, FloatArray] | None:
+    """The reading's force across d in the workplane [N], signed along n x d, and that unit
+    direction n x d (3,); None without a known workplane."""
     if inp.workplane_normal is None:
         return None
     across_dir = unit(np.cross(inp.workplane_normal, inp.direction))
-    return float(np.asarray(inp.force, dtype=float) @ across_dir)
+    return float(np.asarray(inp.force, dtype=float) @ across_dir), across_dir
 
 
 def _finite_direction(v: FloatArray) -> bool:
