@@ -88,6 +88,36 @@ def test_the_strict_reversal_option_lets_a_bigger_reversal_through() -> None:
     assert turns == pytest.approx([0.5, -10.0, 2.0])  # only the smaller reversal counts
 
 
+@pytest.mark.parametrize("once_located", [True, False])
+def test_a_reversal_of_a_proposal_made_before_the_path_was_located_is_not_an_overshoot(
+    once_located: bool,
+) -> None:
+    """The door at the paper's offset: the breakaway reading lies along d (3 N against it,
+    0.1 N across, inside the 0.4 N band) and its small proposal is reversed by the first
+    reading that locates the path (1 N across d). That reversal keeps the full gain; later
+    reversals are damped as before. With the option off (stop 24) it halves the gain."""
+    cfg = SteadyConfig(
+        confidence_ramp=False, rotation_feedforward=False, reversals_once_located=once_located
+    )
+    ctrl = SteadyDirection(Scripted([0.4, -12.0, 6.0, 3.0]), config=cfg)
+    d = X.copy()
+    ctrl.reset(d)
+    turns = []
+    for across in (0.1, 1.0, 1.0, 1.0):
+        f = -3.0 * d + across * np.cross(N, d)
+        nxt = ctrl.next_direction(ControlInput(f, np.zeros(3), d, DT, 0.4, N))
+        turns.append(_signed_deg(d, nxt))
+        d = nxt
+    expected = [0.4, -12.0, 3.0, 1.8] if once_located else [0.4, -6.0, 1.5, 0.9]
+    assert turns == pytest.approx(expected)
+    # without a known workplane nothing is told across d: every proposal is tracked
+    ctrl = SteadyDirection(Scripted([0.4, -12.0]), config=cfg)
+    ctrl.reset(X)
+    first = ctrl.next_direction(ControlInput(-3.0 * X, np.zeros(3), X, DT, 0.4, None))
+    second = ctrl.next_direction(ControlInput(-3.0 * first, np.zeros(3), first, DT, 0.4, None))
+    assert _signed_deg(first, second) == pytest.approx(-6.0)
+
+
 def test_a_persistent_proposal_keeps_or_regains_the_full_gain() -> None:
     cfg = SteadyConfig(confidence_ramp=False, rotation_feedforward=False)
     turns = _applied(SteadyDirection(Scripted([10.0, -10.0] + [3.0] * 12), config=cfg), 14)

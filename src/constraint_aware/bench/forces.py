@@ -221,16 +221,24 @@ PROBED = "steady + probe"
 #: "steady" the full wrapper around it with the mirror-averaged action (controller "policy",
 #: the library's default); "steady: stop 17" is that controller as stop 17 shipped it (no
 #: mirror average), "steady: feed-forward at once" as stop 22 shipped it (the known rotation
-#: fed into d before a reading has located the path), "steady: strict reversal" a rejected
+#: fed into d before a reading has located the path), "steady: reversals before location" as
+#: stop 24 shipped it (the overshoot damping tracking the proposals of readings that had not
+#: located the path), "steady: strict reversal" a rejected
 #: overshoot test (SteadyConfig).
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
     "steady": _named("policy"),  # mirrored, inside SteadyDirection: controller "policy"
     # without the mirror average and feeding the known rotation into d at once
-    "steady: stop 17": _steady(SteadyConfig(wait_for_location=False), mirror=False),
+    "steady: stop 17": _steady(
+        SteadyConfig(wait_for_location=False, reversals_once_located=False), mirror=False
+    ),
     # stop 22's: the known rotation fed into d from the second reading on, located or not
-    "steady: feed-forward at once": _steady(SteadyConfig(wait_for_location=False)),
+    "steady: feed-forward at once": _steady(
+        SteadyConfig(wait_for_location=False, reversals_once_located=False)
+    ),
+    # stop 24's: every proposal tracked by the overshoot damping, located or not
+    "steady: reversals before location": _steady(SteadyConfig(reversals_once_located=False)),
     "steady: strict reversal": _steady(SteadyConfig(strict_reversal=True)),  # rejected
     "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
     "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
