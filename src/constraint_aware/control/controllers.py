@@ -221,7 +221,8 @@ class SteadyDirection(_Base):
     kicks, one step and its reversal, double the mean |F|.
 
     Each step: the inner controller proposes d' (3,); the turn d -> d' (a rotation vector,
-    any axis) is scaled by the confidence ramp and the overshoot gain, plus the feed-forward
+    any axis) is scaled by the confidence ramp and the overshoot gain (which tracks the
+    proposals once a reading has located the path), plus the feed-forward
     turn about the workplane normal when the rotation rate is known and a reading has located
     the path (SteadyConfig.wait_for_location); d_{t+1} is d turned by
     it. The hand rotation (revolute, asked by the executor) is the known rate's, or the
