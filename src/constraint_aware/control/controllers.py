@@ -186,7 +186,9 @@ class SteadyConfig:
     the first real correction for later steps. Measured on the hook hand's door at the
     paper's offset (docs/forces.md, stop 25): a 0.4 deg proposal from the breakaway reading
     (4.6 N against d, 0.1 N across) halved the next reading's 12 deg correction. Without a
-    known workplane nothing is told across d, and every proposal is tracked.
+    known workplane nothing is told across d, and every proposal is tracked. Without the
+    known rotation rate four of the forces study's door cells peak 0.5-1.5 N higher at the
+    same mean |F| (the full first correction lands past the path; docs/forces.md, stop 25).
     """
 
     confidence_ramp: bool = True
