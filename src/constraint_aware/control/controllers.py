@@ -154,10 +154,12 @@ class SteadyConfig:
     confidence_ramp: the turn is scaled by clip((|F| - threshold) / threshold, 0, 1): a force
     just above the dead band is mostly noise (the band is 4 sigma of it), its direction is not
     trusted, from twice the band on it is fully. overshoot_damping: Rprop's gain on the turns
-    (OVERSHOOT_FACTOR, RECOVERY_FACTOR, MIN_TURN_GAIN); any reversal of the last proposal
-    counts. strict_reversal (off; measured and rejected, docs/forces.md): only a reversal no
+    (OVERSHOOT_FACTOR, RECOVERY_FACTOR, MIN_TURN_GAIN); any reversal of the last tracked
+    proposal counts (reversals_once_located: tracked from the first located reading on).
+    strict_reversal (off; measured and rejected, docs/forces.md): only a reversal no
     bigger than the last proposal counts (a turn g*p that overshot the error e leaves
-    |e'| = g|p| - |e| <= |p|). It let the hook hand's door correct in full after a 0.4 deg
+    |e'| = g|p| - |e| <= |p|). Measured before reversals_once_located, which now covers
+    that door case: it let the hook hand's door correct in full after a 0.4 deg
     first proposal, but on the Jaco, whose lag makes the proposals of an oscillation grow, it
     stopped damping them: drawer mean |F| 1.17 -> 1.47 N. rotation_feedforward: with a known
     rotation rate w [rad/s] (revolute, w = v / r, what the classical controller is given), d
@@ -187,7 +189,7 @@ class SteadyConfig:
     paper's offset (docs/forces.md, stop 25): a 0.4 deg proposal from the breakaway reading
     (4.6 N against d, 0.1 N across) halved the next reading's 12 deg correction. Without a
     known workplane nothing is told across d, and every proposal is tracked. Without the
-    known rotation rate four of the forces study's door cells peak 0.5-1.5 N higher at the
+    known rotation rate five of the forces study's door cells peak 0.07-1.5 N higher at the
     same mean |F| (the full first correction lands past the path; docs/forces.md, stop 25).
     """
 
