@@ -223,13 +223,13 @@ PROBED = "steady + probe"
 #: mirror average), "steady: feed-forward at once" as stop 22 shipped it (the known rotation
 #: fed into d before a reading has located the path), "steady: reversals before location" as
 #: stop 24 shipped it (the overshoot damping tracking the proposals of readings that had not
-#: located the path), "steady: strict reversal" a rejected
-#: overshoot test (SteadyConfig).
+#: located the path), "steady: strict reversal" a rejected overshoot test (SteadyConfig).
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
     "steady": _named("policy"),  # mirrored, inside SteadyDirection: controller "policy"
-    # without the mirror average and feeding the known rotation into d at once
+    # without the mirror average, feeding the known rotation into d at once and damping
+    # every proposal's reversal
     "steady: stop 17": _steady(
         SteadyConfig(wait_for_location=False, reversals_once_located=False), mirror=False
     ),

@@ -272,7 +272,10 @@ class SteadyDirection(_Base):
         d = np.asarray(inp.direction, dtype=float)
         extra = None  # the play compensation's part of this step's proposed turn
         across = _across(inp)  # (force [N], direction (3,)) across d, or None
-        compensate = cfg.play_compensation and not self._play_used
+        # the reading locates the path: a force across d above the dead band (the one test
+        # behind wait_for_location, reversals_once_located and the play compensation)
+        locates = across is not None and abs(across[0]) > inp.threshold
+        compensate = cfg.play_compensation and not self._play_used and locates
         played = self._play_input(inp, across) if compensate else None
         if played is None:
             proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
@@ -293,8 +296,7 @@ class SteadyDirection(_Base):
         size = float(np.linalg.norm(turn))
         pending, self._pending_extra = self._pending_extra, None
         take_back = pending is not None and size > 1e-9 and float(turn @ pending) < 0
-        if not self._located:
-            self._located = across is not None and abs(across[0]) > inp.threshold
+        self._located = self._located or locates
         tracked = self._located or across is None or not cfg.reversals_once_located
         if cfg.overshoot_damping and size > 1e-9 and tracked:
             # a reversal of the last proposal, unless it reverses the play compensation
@@ -338,15 +340,14 @@ class SteadyDirection(_Base):
         self, inp: ControlInput, across: tuple[float, FloatArray] | None
     ) -> ControlInput | None:
         """The reading with the play's force added across d, on the side the force across d
-        points to (SteadyConfig.play_compensation), or None when this reading is not
-        compensated: no workplane known, no play force above the dead band, or no force
-        across d above the dead band. across: this reading's `_across`."""
+        points to (SteadyConfig.play_compensation), or None when no play force above the dead
+        band is known. Asked only of a reading that locates the path (a force across d above
+        the dead band, which needs a known workplane). across: this reading's `_across`."""
         # a play force within the dead band is not told apart from the sensor's noise: adding
         # it only perturbs (the Jaco's 0.05 mm, 0.09 N against a 0.55 N band)
         if not inp.play_force or inp.play_force <= inp.threshold:
             return None
-        if across is None or abs(across[0]) <= inp.threshold:
-            return None
+        assert across is not None  # a located reading has a workplane
         across_force, across_dir = across
         added = math.copysign(inp.play_force, across_force) * across_dir
         return replace(inp, force=np.asarray(inp.force, dtype=float) + added)
