@@ -9,10 +9,10 @@ transient vs steady force, the steady lag and zig-zag against the path's turn de
 10 sensor-noise seeds for default, classical and steady; the resistance map for default,
 classical, steady and steady without the known rate; where the start gap to the classical
 controller comes from (the cells where steady is above it: the ground-truth references, the
-settled hand, a stiffer grasp, and door and drawer suite seeds held out from the classical
-controller's tuning, with run-by-run paired differences). Writes forces.json (typed results),
-forces.md (tables rendered from the JSON) and forces_gap.png (the run-by-run differences, drawn
-from the JSON). One process.
+settled hand, a stiffer grasp, a grasp without play, and door and drawer suite seeds held out
+from the classical controller's tuning, with run-by-run paired differences). Writes
+forces.json (typed results), forces.md (tables rendered from the JSON) and forces_gap.png (the
+run-by-run differences, drawn from the JSON). One process.
 """
 
 from __future__ import annotations
@@ -77,6 +77,9 @@ GAP_TASKS = ("door-opening", "drawer-opening")
 GAP_FIGURE = "forces_gap.png"
 #: the grasp check: the hook hand's finger servo stiffness times this
 FINGER_STIFFNESS_FACTOR = 10.0
+#: the play check: the drawer's bar radius [m] at which the hook's play is 0.10 mm (the
+#: setup probe's measure; the task's 13.5 mm bar leaves 1.48 mm)
+PLAY_FREE_BAR_RADIUS = 0.0148
 
 
 def _runs(
@@ -344,6 +347,28 @@ def main() -> None:
         for c, s in suite_conditions(args.seeds)
         if c.task == "drawer-opening"
     ]
+    # the drawer's suite and paper offsets with (nearly) no play in the grasp: is the drawer's
+    # gap the play the probe measures, or more?
+    no_play = f"bar {PLAY_FREE_BAR_RADIUS * 1000:g} mm (0.1 mm play), "
+    play_conds = [
+        (
+            dataclasses.replace(
+                c,
+                axis=no_play + axis,
+                overrides=(*c.overrides, ("object__handle_radius", PLAY_FREE_BAR_RADIUS)),
+            ),
+            s,
+        )
+        for axis, c, s in [
+            *(("suite", c, s) for c, s in suite_conditions(args.seeds)),
+            *(
+                ("paper offsets", c, s)
+                for c in paper_offset_conditions()
+                for s in range(args.noise_seeds)
+            ),
+        ]
+        if c.task == "drawer-opening"
+    ]
     # the suite's door and drawer on seeds after the suite's: the classical gains were
     # grid-searched on drawer seeds 0-4, so these say whether a gap is that fit or the object's
     held_out = f"held-out suite, seeds {args.seeds}-{args.seeds + args.held_out_seeds - 1}"
@@ -356,6 +381,7 @@ def main() -> None:
         _runs(gap_conds, GAP_VARIANTS, policy)
         + _runs(gap_conds, GAP_SETTLED, policy, settled=True)
         + _runs(stiff_conds, GAP_SETTLED, policy)
+        + _runs(play_conds, GAP_SETTLED, policy)
         + _runs(held_conds, (*GAP_SETTLED, PROBED), policy)
     )
     paired = [
