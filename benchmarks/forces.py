@@ -354,19 +354,12 @@ def main() -> None:
         (
             dataclasses.replace(
                 c,
-                axis=no_play + axis,
+                axis=no_play + c.axis,
                 overrides=(*c.overrides, ("object__handle_radius", PLAY_FREE_BAR_RADIUS)),
             ),
             s,
         )
-        for axis, c, s in [
-            *(("suite", c, s) for c, s in suite_conditions(args.seeds)),
-            *(
-                ("paper offsets", c, s)
-                for c in paper_offset_conditions()
-                for s in range(args.noise_seeds)
-            ),
-        ]
+        for c, s in gap_conds
         if c.task == "drawer-opening"
     ]
     # the suite's door and drawer on seeds after the suite's: the classical gains were
