@@ -212,6 +212,9 @@ def _wrapped(kind: str) -> ControllerFactory:
 
 
 _OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False)
+#: the wrapper as it was until stop 22: nothing waits for a reading that locates the path (the
+#: known rotation fed into d at once, every proposal's reversal damped)
+_UNLOCATED = SteadyConfig(wait_for_location=False, reversals_once_located=False)
 
 #: The variant that probes a twin of its condition at setup and runs with what the probe
 #: measured (control.simulate.probed_config), as `cap run --probe` does.
@@ -228,15 +231,9 @@ VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
     "steady": _named("policy"),  # mirrored, inside SteadyDirection: controller "policy"
-    # without the mirror average, feeding the known rotation into d at once and damping
-    # every proposal's reversal
-    "steady: stop 17": _steady(
-        SteadyConfig(wait_for_location=False, reversals_once_located=False), mirror=False
-    ),
+    "steady: stop 17": _steady(_UNLOCATED, mirror=False),  # without the mirror average
     # stop 22's: the known rotation fed into d from the second reading on, located or not
-    "steady: feed-forward at once": _steady(
-        SteadyConfig(wait_for_location=False, reversals_once_located=False)
-    ),
+    "steady: feed-forward at once": _steady(_UNLOCATED),
     # stop 24's: every proposal tracked by the overshoot damping, located or not
     "steady: reversals before location": _steady(SteadyConfig(reversals_once_located=False)),
     "steady: strict reversal": _steady(SteadyConfig(strict_reversal=True)),  # rejected
