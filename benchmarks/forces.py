@@ -70,7 +70,14 @@ MAIN_VARIANTS = (
 )
 #: the gap study: the library's controller and the classical one, the references, and both
 #: controllers with the settled hand
-GAP_VARIANTS = ("steady", "classical", "steady: reversals before location", PROBED, *REFERENCES)
+GAP_VARIANTS = (
+    "steady",
+    "classical",
+    "steady: reversals before location",
+    "steady: lag inversion",
+    PROBED,
+    *REFERENCES,
+)
 GAP_SETTLED = ("steady", "classical")
 GAP_TASKS = ("door-opening", "drawer-opening")
 #: the run-by-run figure, beside forces.md
@@ -381,6 +388,7 @@ def main() -> None:
         *paired_differences(gap_runs, "steady", "classical"),
         *paired_differences(gap_runs, PROBED, "classical"),
         *paired_differences(gap_runs, "steady", "steady: reversals before location"),
+        *paired_differences(gap_runs, "steady: lag inversion", "classical"),
         *paired_differences(gap_runs, "steady" + SETTLED_SUFFIX, "classical" + SETTLED_SUFFIX),
     ]
     data: dict[str, Any] = {

@@ -249,15 +249,18 @@ def test_the_probed_variant_probes_a_twin_and_not_at_the_settled_period() -> Non
         run_variant(cond, PROBED, 0, settled=True)
 
 
-@pytest.mark.parametrize(("variant", "preload", "seed"), [("classical", 7.0, 1)])
+@pytest.mark.parametrize(
+    ("variant", "preload", "seed"), [("steady: lag inversion", 6.0, 0), ("classical", 7.0, 1)]
+)
 def test_the_self_check_lets_a_handle_with_a_released_preload_through(
     variant: str, preload: float, seed: int
 ) -> None:
     """The handle against a 6-7 N preload that releases as it moves: at full speed the lag
     model's credit tau v cancels the deflection along d, and with the full credit alone the
     self-check read cos(F, deflection) ~ 0 as a rotated frame (stop 27: the classical
-    controller stopped on seeds 1-4 of 0-4 at 7 N). With half the credit F agrees with the
-    deflection (cos 0.89-1.0), and the run succeeds."""
+    controller stopped on seeds 1-4 of 0-4 at 7 N, the policy with the lag inversion on seeds 0
+    and 4 at 6 N). With half the credit F agrees with the deflection (cos 0.89-1.0), and the
+    run succeeds."""
     cond = Condition("preload release", preload, "handle-rotating", 15.0, preload_N=preload)
     run = run_variant(cond, variant, seed)
     assert run.outcome == "success", run

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from constraint_aware.control.controllers import FixedDirection, PolicyController
+from constraint_aware.control.controllers import ControlInput, FixedDirection, PolicyController
 from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.record import RunRecord
 from constraint_aware.geometry import rotate_about
@@ -166,6 +166,26 @@ def test_an_invalid_tracking_time_constant_is_ignored_with_a_note(value: object)
     else:
         assert any(n.startswith("ignored tracking_time_constant") for n in rec.notes)
     assert rec.outcome == "not_following"  # as without the member (test above)
+
+
+@pytest.mark.parametrize("report_tau", [True, False, math.nan])
+def test_the_controller_is_given_the_robots_valid_lag(report_tau: object) -> None:
+    """ControlInput.tracking_time_constant is the robot's tau when it reports a valid one (the
+    steady controller's lag inversion reads it), else None."""
+
+    class Seeing(FixedDirection):
+        def __init__(self) -> None:
+            self.taus: list[float | None] = []
+
+        def next_direction(self, inp: ControlInput) -> np.ndarray:
+            self.taus.append(inp.tracking_time_constant)
+            return super().next_direction(inp)
+
+    robot = LaggingGuide(tau=0.2, report_tau=report_tau)
+    seeing = Seeing()
+    Executor(robot, seeing, GOAL).run(d0(30.0))  # type: ignore[arg-type]
+    assert seeing.taus
+    assert set(seeing.taus) == ({0.2} if report_tau is True else {None})
 
 
 @pytest.mark.parametrize("report_tau", [True, False])

@@ -361,3 +361,69 @@ def test_a_play_force_within_the_dead_band_is_not_added() -> None:
     cfg = SteadyConfig(rotation_feedforward=False)
     turns = _across_run(SteadyDirection(AcrossGain(2.0), config=cfg), [1.0, 1.0], play_force=0.3)
     assert turns == pytest.approx([2.0, 2.0])
+
+
+class Recording(AcrossGain):
+    """AcrossGain that keeps d and records each force it was asked, (3,) [N]."""
+
+    def __init__(self) -> None:
+        super().__init__(0.0)
+        self.forces: list[FloatArray] = []
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        self.forces.append(np.asarray(inp.force, dtype=float).copy())
+        return super().next_direction(inp)
+
+
+#: tau with exp(-T / tau) = 0.5: a reading carries half of the last one
+HALF_TAU = DT / math.log(2.0)
+
+
+def test_the_arm_lag_is_undone_across_d_from_the_located_reading_on() -> None:
+    """(F - lam F_prev) / (1 - lam) across d, lam = 0.5: the first reading (0.1 N, under the
+    0.4 N band) is passed as read; the first located one, 2 N after 0.1 N, becomes 3.9 N; a
+    constant 2 N stays 2 N; its drop to 1 N reads 0 N, to 0 N reads -1 N, and these later
+    readings are inverted although they are within the band (the path is located). The part
+    along d (-4 N, the object's resistance) is passed as read."""
+    inner = Recording()
+    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=True)
+    ctrl = SteadyDirection(inner, config=cfg)
+    _across_run(ctrl, [0.1, 2.0, 2.0, 1.0, 0.0], tracking_time_constant=HALF_TAU)
+    assert inner.seen == pytest.approx([0.1, 3.9, 2.0, 0.0, -1.0])
+    assert [float(f @ X) for f in inner.forces] == pytest.approx([-4.0] * 5)
+    assert [float(f @ N) for f in inner.forces] == pytest.approx([0.0] * 5)
+
+
+@pytest.mark.parametrize("case", ["no tau", "default (off)", "bad tau"])
+def test_without_a_reported_lag_or_with_the_option_off_the_readings_pass_as_read(
+    case: str,
+) -> None:
+    """The inversion is off by default (measured and rejected, SteadyConfig.lag_inversion)."""
+    inner = Recording()
+    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=case != "default (off)")
+    tau = {"no tau": None, "default (off)": HALF_TAU, "bad tau": math.nan}[case]
+    _across_run(SteadyDirection(inner, config=cfg), [0.1, 2.0, 2.0, 1.0],
+                tracking_time_constant=tau)  # fmt: skip
+    assert inner.seen == pytest.approx([0.1, 2.0, 2.0, 1.0])
+
+
+def test_without_a_workplane_nothing_is_inverted() -> None:
+    """Nothing is told across d without a known workplane (no located reading)."""
+    inner = Recording()
+    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=True)
+    ctrl = SteadyDirection(inner, config=cfg)
+    ctrl.reset(X)
+    forces = [np.array([-4.0, a, 0.0]) for a in (0.1, 2.0, 1.0)]
+    for f in forces:
+        ctrl.next_direction(ControlInput(f, np.zeros(3), X, DT, 0.4, None,
+                                         tracking_time_constant=HALF_TAU))  # fmt: skip
+    assert np.allclose(inner.forces, forces)
+
+
+def test_the_play_compensation_adds_to_the_lag_inverted_reading() -> None:
+    """Both on the first located reading: (2 - 0.5 x 0.1) / 0.5 = 3.9 N, plus 3 N of play."""
+    inner = Recording()
+    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=True)
+    _across_run(SteadyDirection(inner, config=cfg), [0.1, 2.0, 2.0], play_force=3.0,
+                tracking_time_constant=HALF_TAU)  # fmt: skip
+    assert inner.seen == pytest.approx([0.1, 6.9, 2.0])

@@ -226,7 +226,8 @@ PROBED = "steady + probe"
 #: mirror average), "steady: feed-forward at once" as stop 22 shipped it (the known rotation
 #: fed into d before a reading has located the path), "steady: reversals before location" as
 #: stop 24 shipped it (the overshoot damping tracking the proposals of readings that had not
-#: located the path), "steady: strict reversal" a rejected overshoot test (SteadyConfig).
+#: located the path), "steady: strict reversal" a rejected overshoot test and "steady: lag
+#: inversion" the rejected lag inversion (SteadyConfig).
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
@@ -237,6 +238,7 @@ VARIANTS: dict[str, ControllerFactory] = {
     # stop 24's: every proposal tracked by the overshoot damping, located or not
     "steady: reversals before location": _steady(SteadyConfig(reversals_once_located=False)),
     "steady: strict reversal": _steady(SteadyConfig(strict_reversal=True)),  # rejected
+    "steady: lag inversion": _steady(SteadyConfig(lag_inversion=True)),  # rejected
     "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
     "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
     "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),

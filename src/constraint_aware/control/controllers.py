@@ -35,6 +35,8 @@ class ControlInput:
     grasp, paper appendix): a controller's own hand rotation would override it.
     play_force: [N] the force the grasp's play hides, k*p (`ExecutorConfig.grasp_play`, measured
     by control.probe), when known and non-zero.
+    tracking_time_constant: [s] tau, how the robot's tool lags a commanded pose (the Robot
+    protocol's optional member), when the robot reports it.
     """
 
     force: FloatArray
@@ -46,6 +48,7 @@ class ControlInput:
     step_force: float | None = None
     fixed_orientation: bool = False
     play_force: float | None = None
+    tracking_time_constant: float | None = None
 
 
 class DirectionController(Protocol):
@@ -191,6 +194,19 @@ class SteadyConfig:
     known workplane nothing is told across d, and every proposal is tracked. Without the
     known rotation rate five of the forces study's door cells peak 0.07-1.5 N higher at the
     same mean |F| (the full first correction lands past the path; docs/forces.md, stop 25).
+    lag_inversion (off; measured and rejected, docs/forces.md, stop 27): with the robot's
+    tracking_time_constant tau, the force across d that the inner controller sees is a
+    first-order lag undone, F_across' = (F_across - lam F_across,prev) / (1 - lam),
+    lam = exp(-dt / tau), from the reading that first locates the path on (the along-d part
+    as read; a constant force unchanged). A reading does carry part of the last one across d:
+    fitted on the hook hand's drawer suite (classical controller, against the simulator's
+    path), 0.32 of it at 2000 N/m, where exp(-dt / tau) = 0.27, and there it puts the
+    drawer below the classical controller (suite mean |F| 0.892 against 0.907 N). But that
+    share is the grasp's and the arm's together, not the free-space tau's: 0.29 at 500 N/m
+    (exp(-dt / tau) = 0.52), 0.64 at 8000 N/m (0.07), 0.18 with 10x stiffer fingers. With tau
+    the inversion overshoots where tau overstates it: on the Jaco the door's paper-offset
+    peak rises from 19.3 to 33.4 N, on the hook hand at 500 N/m the pole's mean |F| from 0.78
+    to 0.85 N.
     """
 
     confidence_ramp: bool = True
@@ -200,6 +216,7 @@ class SteadyConfig:
     play_compensation: bool = True
     wait_for_location: bool = True
     reversals_once_located: bool = True
+    lag_inversion: bool = False
     overshoot_factor: float = OVERSHOOT_FACTOR
     recovery_factor: float = RECOVERY_FACTOR
     min_gain: float = MIN_TURN_GAIN
@@ -260,6 +277,7 @@ class SteadyDirection(_Base):
         self._play_used = False  # the play has been compensated in this run
         self._located = False  # a reading has carried a force across d above the dead band
         self._pending_extra: FloatArray | None = None  # last step's applied play turn
+        self._previous_force: FloatArray | None = None  # [N] (3,) the last raw reading
 
     def step_length(self, nominal: float) -> float:
         return self.inner.step_length(nominal)
@@ -275,15 +293,18 @@ class SteadyDirection(_Base):
         # the reading locates the path: a force across d above the dead band (the one test
         # behind wait_for_location, reversals_once_located and the play compensation)
         locates = across is not None and abs(across[0]) > inp.threshold
+        # what the inner controller is asked: the reading with the arm's lag undone across d
+        # (SteadyConfig.lag_inversion), from the first located reading on
+        asked = self._lag_inverted(inp, across, self._located or locates)
         compensate = cfg.play_compensation and not self._play_used and locates
-        played = self._play_input(inp, across) if compensate else None
+        played = self._play_input(asked, across) if compensate else None
         if played is None:
-            proposed = np.asarray(self.inner.next_direction(inp), dtype=float)
+            proposed = np.asarray(self.inner.next_direction(asked), dtype=float)
         else:
             # the reading as it is is asked of a copy, so that the inner controller's own state
             # (a history policy's previous step, an integrator) advances once, with the
             # reading that drives the move
-            raw = np.asarray(copy.deepcopy(self.inner).next_direction(inp), dtype=float)
+            raw = np.asarray(copy.deepcopy(self.inner).next_direction(asked), dtype=float)
             proposed = np.asarray(self.inner.next_direction(played), dtype=float)
             if not _finite_direction(raw):
                 return raw  # the executor stops on it ("bad_command"), naming it
@@ -335,6 +356,24 @@ class SteadyDirection(_Base):
         else:
             self._rotation = Rotation.from_rotvec(per_step if known else self._smoothed)
         return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
+
+    def _lag_inverted(
+        self, inp: ControlInput, across: tuple[float, FloatArray] | None, located: bool
+    ) -> ControlInput:
+        """The reading with the arm's first-order lag undone across d
+        (SteadyConfig.lag_inversion) once the path is located, else the reading as it is.
+        Remembers the raw reading for the next step. across: this reading's `_across`."""
+        force = np.asarray(inp.force, dtype=float)
+        previous, self._previous_force = self._previous_force, force.copy()
+        tau = inp.tracking_time_constant
+        if not (self.config.lag_inversion and located and across is not None):
+            return inp
+        if previous is None or tau is None or not (math.isfinite(tau) and tau > 0):
+            return inp
+        lam = math.exp(-inp.dt / tau)  # the share of the last reading a reading still carries
+        across_force, across_dir = across
+        restored = (across_force - lam * float(previous @ across_dir)) / (1.0 - lam)
+        return replace(inp, force=force + (restored - across_force) * across_dir)
 
     def _play_input(
         self, inp: ControlInput, across: tuple[float, FloatArray] | None

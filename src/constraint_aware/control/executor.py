@@ -588,6 +588,7 @@ class Executor:
                 if st.stiffness is not None and cfg.grasp_play > 0
                 else None
             ),
+            tracking_time_constant=st.tracking_time_constant,
         )
         raw = np.asarray(self.controller.next_direction(inp), dtype=float)
         if raw.shape != (3,) or not np.all(np.isfinite(raw)) or np.linalg.norm(raw) < 1e-9:
