@@ -137,6 +137,12 @@ SELF_CHECK_CONFIRM_COS = 0.5
 CONFIRM_LAG_SHARE = 0.5
 
 
+def _agree(cosines: list[float]) -> bool:
+    """Whether the self-check's moves agree with the arm: median cos(F, deflection) at least
+    SELF_CHECK_CONFIRM_COS (a flipped sign gives about -1, a frame rotated 90 deg about 0)."""
+    return bool(cosines) and float(np.median(cosines)) >= SELF_CHECK_CONFIRM_COS
+
+
 def max_grasp_play(step_length: float) -> float:
     """[m] The most grasp play the executor accepts: half a step. More would hide the
     constraint for most of every step (a step along d meets the constraint only when the
@@ -871,10 +877,8 @@ class Executor:
         # 6 N preload release: k x deflection along d -0.3 N where F reads -6.6 N), and the
         # cosine rests on the small parts across d, near 0 (docs/forces.md, stop 27). A
         # flipped sign or a frame rotated by 90 deg disagrees at either share (~ -1, ~ 0).
-        half_agrees = bool(st.check_confirm) and (
-            float(np.median(st.check_confirm)) >= SELF_CHECK_CONFIRM_COS
-        )
-        if len(st.check_deflection) >= SELF_CHECK_MIN_SAMPLES and not half_agrees:
+        judged = len(st.check_deflection) >= SELF_CHECK_MIN_SAMPLES
+        if judged and not _agree(st.check_confirm):
             c = float(np.median(st.check_deflection))
             if c < -0.5:
                 return (
@@ -927,10 +931,7 @@ class Executor:
         can match.)"""
         if len(st.check_deflection) < SELF_CHECK_MIN_SAMPLES:
             return False
-        return (
-            min(float(np.median(st.check_deflection)), float(np.median(st.check_confirm)))
-            >= SELF_CHECK_CONFIRM_COS
-        )
+        return _agree(st.check_deflection) and _agree(st.check_confirm)
 
     def _goal_reached(self, st: _Run, pose: Pose) -> str:
         """A reason when the configured goal is reached (from the robot's own poses)."""
