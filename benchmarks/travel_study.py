@@ -21,7 +21,10 @@ sensor noise 0.1 N, the dead band derived from it):
   readings whose force across d is above the dead band (one inside it is noise, not
   amplified);
 - `across / travel, first located`: the same on the first such reading only;
-- `across / travel, weighted`: the same, its gain (delta / x - 1) times |F_across| / |F|.
+- `across / travel, weighted`: the same, its gain (delta / x - 1) times |F_across| / |F|;
+- `hold after the first move`: no scaling; instead the controller commands no move (step
+  length 0, d kept) on the first reading after the first move from rest, so that the reading
+  it first corrects on is the settled one the policy was trained on.
 
 Cells: the 20-seed randomized suite and the paper's offsets over sensor-noise seeds (every
 task), and the resistance map (the policy section's cells, 2 seeds each). Writes every run
@@ -71,6 +74,7 @@ VARIANTS = (
     "across / travel",
     "across / travel, first located",
     "across / travel, weighted",
+    "hold after the first move",
 )
 
 
@@ -165,6 +169,32 @@ class TravelScaled:
         return dataclasses.replace(inp, force=force + gain * across * across_dir)
 
 
+class HoldFirst:
+    """The `policy` controller, holding still for one period after the first move from rest:
+    the first reading after it is not passed on, d is kept and the step length is 0."""
+
+    def __init__(self, inner: DirectionController) -> None:
+        self.inner = inner
+        self.name = inner.name
+        self._calls = 0
+        self._hold = False
+
+    def reset(self, direction: FloatArray) -> None:
+        self._calls, self._hold = 0, False
+        self.inner.reset(direction)
+
+    def step_length(self, nominal: float) -> float:
+        return 0.0 if self._hold else self.inner.step_length(nominal)
+
+    def hand_rotation(self) -> Rotation | None:
+        return None if self._hold else self.inner.hand_rotation()
+
+    def next_direction(self, inp: ControlInput) -> FloatArray:
+        self._calls += 1  # call 1 is the reading at rest, before the first move
+        self._hold = self._calls == 2
+        return inp.direction if self._hold else self.inner.next_direction(inp)
+
+
 def one_run(cond: Condition, seed: int, variant: str) -> dict[str, Any]:
     policy = ConstraintAwarePolicy.load()
     spec = RunSpec(
@@ -178,6 +208,8 @@ def one_run(cond: Condition, seed: int, variant: str) -> dict[str, Any]:
     ctrl: DirectionController
     if variant in REFERENCES:
         ctrl = make_controller(variant, policy, prep.rotation_rate, prep.normal)
+    elif variant == "hold after the first move":
+        ctrl = HoldFirst(make_controller("policy", policy, prep.rotation_rate, prep.normal))
     else:
         inner = make_controller("policy", policy, prep.rotation_rate, prep.normal)
         ctrl = TravelScaled(inner, meter, sim.translational_stiffness, cfg.step_length, variant)
