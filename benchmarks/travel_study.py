@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
 import os
 import time
@@ -55,7 +56,12 @@ from constraint_aware.bench.analysis import (
     resistance_map,
     suite_conditions,
 )
-from constraint_aware.control.controllers import ControlInput, DirectionController, make_controller
+from constraint_aware.control.controllers import (
+    ControlInput,
+    DirectionController,
+    _across,
+    make_controller,
+)
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.simulate import RunSpec
 from constraint_aware.geometry import FloatArray
@@ -153,10 +159,10 @@ class TravelScaled:
             )  # fmt: skip
         if self.variant == "step force from travel":
             return dataclasses.replace(inp, step_force=self.k * max(travel, floor))
-        across_dir = np.cross(inp.workplane_normal, inp.direction)
-        across_dir = across_dir / np.linalg.norm(across_dir)
+        located = _across(inp)  # the steady controller's own split (known workplane)
+        assert located is not None
+        across, across_dir = located
         force = np.asarray(inp.force, dtype=float)
-        across = float(force @ across_dir)
         if abs(across) <= inp.threshold:
             return inp
         if self.variant == "across / travel, first located":
@@ -195,8 +201,14 @@ class HoldFirst:
         return inp.direction if self._hold else self.inner.next_direction(inp)
 
 
+@functools.cache
+def _policy() -> ConstraintAwarePolicy:
+    """The default policy, loaded once per worker process."""
+    return ConstraintAwarePolicy.load()
+
+
 def one_run(cond: Condition, seed: int, variant: str) -> dict[str, Any]:
-    policy = ConstraintAwarePolicy.load()
+    policy = _policy()
     spec = RunSpec(
         cond.task, "policy", cond.offset_deg, seed=seed, randomize=cond.randomize,
         sensor_noise=SENSOR_NOISE, overrides=cond.overrides,
@@ -316,7 +328,7 @@ def main() -> None:
     summary = summarize(runs)
     totals = map_totals(summary)
     data = {
-        "policy": ConstraintAwarePolicy.load().name,
+        "policy": _policy().name,
         "sensor_noise_N": SENSOR_NOISE,
         "min_travel_share": MIN_TRAVEL_SHARE,
         "wall_time_s": time.perf_counter() - start,
