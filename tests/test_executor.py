@@ -457,6 +457,35 @@ def test_self_check_names_a_flipped_sign() -> None:
     assert any(n.startswith("self-check passed") for n in rec.notes)
 
 
+class HoldAfterFirstMove(FixedDirection):
+    """Keeps d and commands a zero-length step (a hold) after the first move, as the
+    `DirectionController` protocol allows."""
+
+    def reset(self, direction: np.ndarray) -> None:
+        self.calls = 0
+
+    def next_direction(self, inp: ControlInput) -> np.ndarray:
+        self.calls += 1  # call 1 is the reading at rest, before the first move
+        return inp.direction
+
+    def step_length(self, nominal: float) -> float:
+        return 0.0 if self.calls == 2 else nominal
+
+
+def test_a_hold_does_not_hide_a_flipped_sign() -> None:
+    """The self-check skips the reading after a hold and the one after the hand starts again
+    (SELF_CHECK_SETTLE_MOVES), and judges the moves after them: a flipped sign is still
+    caught, within the self-check's moves."""
+    cfg = ExecutorConfig()
+    rec = Executor(Flipped(), HoldAfterFirstMove(), cfg).run(d0(30))
+    assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
+    assert rec.n_steps <= cfg.self_check_steps + 1
+    healthy = Executor(FakeGuide(), HoldAfterFirstMove(), ExecutorConfig(max_steps=10))
+    rec = healthy.run(d0(30))
+    assert rec.outcome == "timeout"
+    assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
+
+
 def test_wrench_from_sensor_frame_sign_lever_and_weight() -> None:
     rot = Rotation.from_rotvec([0.0, 0.0, math.pi / 2])  # sensor x = world y
     w = Wrench.from_sensor(
