@@ -24,12 +24,24 @@ sensor noise 0.1 N, the dead band derived from it):
 - `across / travel, weighted`: the same, its gain (delta / x - 1) times |F_across| / |F|;
 - `hold after the first move`: no scaling; instead the controller commands no move (step
   length 0, d kept) on the first reading after the first move from rest, so that the reading
-  it first corrects on is the settled one the policy was trained on.
+  it first corrects on is the settled one the policy was trained on (a zero-length step holds
+  the measured pose: the executor re-anchors the whole in-plane tracking error, so the arm
+  relaxes);
+- `across / travel, gated` (stop 29): `across / travel` only on readings whose force along d
+  the hand's travel explains, k x > -F.d (until then the object still holds the hand and the
+  force across d is its resistance seen at an angle);
+- `across / travel, gated, first reading` (stop 29): the same on the reading after the first
+  move only.
+
+The variants wrap `policy` as stop 28 shipped it (`policy: stop 28`, SteadyConfig
+travel_scaling off). `policy` is the library's controller since stop 29: the gated scaling on
+the first reading with the arm's lag credited, delta / (x (1 + tau / dt))
+(SteadyConfig.travel_scaling).
 
 Cells: the 20-seed randomized suite and the paper's offsets over sensor-noise seeds (every
 task), and the resistance map (the policy section's cells, 2 seeds each). Writes every run
 and the per-cell summary to benchmarks/results/travel_study.json and prints the tables.
-Nothing here is adopted: docs/forces.md (stop 28) says why.
+docs/forces.md (stops 28 and 29) says what was adopted and why.
 """
 
 from __future__ import annotations
@@ -57,8 +69,12 @@ from constraint_aware.bench.analysis import (
     suite_conditions,
 )
 from constraint_aware.control.controllers import (
+    MIN_TRAVEL_SHARE,
     ControlInput,
     DirectionController,
+    PolicyController,
+    SteadyConfig,
+    SteadyDirection,
     _across,
     make_controller,
 )
@@ -70,10 +86,9 @@ from constraint_aware.spatial import Pose
 
 RESULT = Path(__file__).parent / "results" / "travel_study.json"
 SENSOR_NOISE = 0.1  # [N] as the forces study
-#: the least travel the scalings divide by, as a share of the step (a hand that has hardly
-#: moved would otherwise give an unbounded factor)
-MIN_TRAVEL_SHARE = 0.1
-REFERENCES = ("policy", "classical")
+# MIN_TRAVEL_SHARE (controllers): here the least travel the scalings divide by, as a share of
+# the step (a hand that has hardly moved would otherwise give an unbounded factor)
+REFERENCES = ("policy: stop 28", "policy", "classical")
 VARIANTS = (
     "step force from stretch",
     "step force from travel",
@@ -81,6 +96,8 @@ VARIANTS = (
     "across / travel, first located",
     "across / travel, weighted",
     "hold after the first move",
+    "across / travel, gated",
+    "across / travel, gated, first reading",
 )
 
 
@@ -134,9 +151,11 @@ class TravelScaled:
         self.variant = variant
         self.name = inner.name
         self._scaled_once = False
+        self._readings = 0
 
     def reset(self, direction: FloatArray) -> None:
         self._scaled_once = False
+        self._readings = 0
         self.inner.reset(direction)
 
     def step_length(self, nominal: float) -> float:
@@ -149,6 +168,7 @@ class TravelScaled:
         return self.inner.next_direction(self._changed(inp))
 
     def _changed(self, inp: ControlInput) -> ControlInput:
+        self._readings += 1  # reading 1 is at rest, reading 2 after the first move
         travel, stretch = self.meter.travel, self.meter.stretch
         if travel is None or inp.step_force is None or inp.workplane_normal is None:
             return inp
@@ -169,6 +189,10 @@ class TravelScaled:
             if self._scaled_once:
                 return inp
             self._scaled_once = True
+        if ", gated" in self.variant and self.k * travel + float(force @ inp.direction) <= 0:
+            return inp  # the object still holds the hand
+        if self.variant.endswith("first reading") and self._readings != 2:
+            return inp
         gain = self.delta / min(self.delta, max(travel, floor)) - 1.0
         if self.variant == "across / travel, weighted":
             gain *= abs(across) / float(np.linalg.norm(force))
@@ -218,13 +242,19 @@ def one_run(cond: Condition, seed: int, variant: str) -> dict[str, Any]:
     assert cfg.workplane_normal is not None
     meter = TravelMeter(sim, np.asarray(cfg.workplane_normal, dtype=float))
     ctrl: DirectionController
-    if variant in REFERENCES:
+    # stop 28's `policy`: the start's reading as it is, under every variant
+    stop28 = SteadyDirection(
+        PolicyController(policy, mirror=True), prep.rotation_rate,
+        SteadyConfig(travel_scaling=False), name="policy",
+    )  # fmt: skip
+    if variant == "policy: stop 28":
+        ctrl = stop28
+    elif variant in REFERENCES:
         ctrl = make_controller(variant, policy, prep.rotation_rate, prep.normal)
     elif variant == "hold after the first move":
-        ctrl = HoldFirst(make_controller("policy", policy, prep.rotation_rate, prep.normal))
+        ctrl = HoldFirst(stop28)
     else:
-        inner = make_controller("policy", policy, prep.rotation_rate, prep.normal)
-        ctrl = TravelScaled(inner, meter, sim.translational_stiffness, cfg.step_length, variant)
+        ctrl = TravelScaled(stop28, meter, sim.translational_stiffness, cfg.step_length, variant)
     record = Executor(meter, ctrl, cfg, monitor=sim).run(prep.d0, {"task": cond.task})
     return {  # the condition's overrides follow from its axis and level (bench.analysis)
         "axis": cond.axis,

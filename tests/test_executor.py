@@ -486,6 +486,28 @@ def test_a_hold_does_not_hide_a_flipped_sign() -> None:
     assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
 
 
+class Inputs(FixedDirection):
+    """Keeps d and records what it was given each step."""
+
+    def reset(self, direction: np.ndarray) -> None:
+        self.inputs: list[ControlInput] = []
+
+    def next_direction(self, inp: ControlInput) -> np.ndarray:
+        self.inputs.append(inp)
+        return inp.direction
+
+
+def test_the_controller_is_told_the_last_move_and_the_hand_travel() -> None:
+    """Before the first move neither is known; after it, the move (1 cm) and the hand's
+    travel from the pose at that command: on the guide along U, 1 cm x cos(30 deg)."""
+    ctrl = Inputs()
+    Executor(FakeGuide(), ctrl, ExecutorConfig(max_steps=3)).run(d0(30))
+    first, second = ctrl.inputs[:2]
+    assert first.last_move is None and first.hand_travel is None
+    assert second.last_move == pytest.approx(0.01)
+    assert second.hand_travel == pytest.approx(0.01 * math.cos(math.radians(30)))
+
+
 def test_wrench_from_sensor_frame_sign_lever_and_weight() -> None:
     rot = Rotation.from_rotvec([0.0, 0.0, math.pi / 2])  # sensor x = world y
     w = Wrench.from_sensor(

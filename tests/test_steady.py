@@ -427,3 +427,55 @@ def test_the_play_compensation_adds_to_the_lag_inverted_reading() -> None:
     _across_run(SteadyDirection(inner, config=cfg), [0.1, 2.0, 2.0], play_force=3.0,
                 tracking_time_constant=HALF_TAU)  # fmt: skip
     assert inner.seen == pytest.approx([0.1, 6.9, 2.0])
+
+
+#: a hook-hand-like start: k = 2000 N/m, a 1 cm first move, the hand 4 mm along when the
+#: reading is taken, tau = 0.05 s (x (1 + tau / dt) = 6 mm: the force across d x 10 / 6)
+TRAVEL = {"stiffness": 2000.0, "last_move": 0.01, "hand_travel": 0.004,
+          "tracking_time_constant": 0.05}  # fmt: skip
+
+
+def test_the_first_reading_after_the_first_move_is_scaled_from_the_hand_travel() -> None:
+    """Only the reading after the first move (the second: the first is at rest), only across
+    d: 2 N -> 2 x 10 / 6 = 3.33 N; the 4 N along d (k x = 8 N explains it) as read."""
+    inner = Recording()
+    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    _across_run(ctrl, [0.1, 2.0, 2.0], **TRAVEL)
+    assert inner.seen == pytest.approx([0.1, 2.0 / 0.6, 2.0])
+    assert [float(f @ X) for f in inner.forces] == pytest.approx([-4.0] * 3)
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"hand_travel": 0.0015},  # k x = 3 N < the 4 N along d: the object holds the hand
+        {"hand_travel": 0.0005},  # under a tenth of the move: the hand has not started
+        {"hand_travel": 0.008},  # 8 mm x 1.5 >= the move: nothing understated
+        {"tracking_time_constant": None},  # no lag reported: the reading as it is
+        {"tracking_time_constant": math.nan},
+        {"stiffness": None},
+        {"last_move": 0.0},  # a hold
+        {"last_move": None},
+    ],
+)
+def test_the_travel_scaling_leaves_a_reading_it_cannot_ground_as_read(
+    change: dict[str, object],
+) -> None:
+    inner = Recording()
+    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    _across_run(ctrl, [0.1, 2.0, 2.0], **{**TRAVEL, **change})
+    assert inner.seen == pytest.approx([0.1, 2.0, 2.0])
+
+
+def test_the_travel_scaling_acts_on_the_reading_after_the_first_move_only() -> None:
+    """A reading after the first move inside the dead band across d (0.3 N) locates nothing;
+    the next one (after a steady move) is not a start from rest, and is not scaled; nor is
+    anything with the option off."""
+    inner = Recording()
+    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    _across_run(ctrl, [0.1, 0.3, 2.0], **TRAVEL)
+    assert inner.seen == pytest.approx([0.1, 0.3, 2.0])
+    off = SteadyConfig(rotation_feedforward=False, travel_scaling=False)
+    inner = Recording()
+    _across_run(SteadyDirection(inner, config=off), [0.1, 2.0, 2.0], **TRAVEL)
+    assert inner.seen == pytest.approx([0.1, 2.0, 2.0])

@@ -233,6 +233,7 @@ class FaultRun:
     max_command_jump_m: float = 0.0
     holds: int = 0
     steps: int = 0
+    self_check: str = ""  # the self-check's verdict note: "passed", "inconclusive" or ""
 
 
 @dataclass
@@ -318,9 +319,10 @@ def run_fault(
         dangers.append(f"true |F| {peak:.1f} N > {DANGER_FORCE_FACTOR} x {limit:g} N")
     if robot.holds == 0:
         dangers.append("hold() not called")
-    outcome, reason, steps = "missing", "", 0
+    outcome, reason, steps, self_check = "missing", "", 0, ""
     if record is not None:
         outcome, reason, steps = record.outcome, record.reason, record.n_steps
+        self_check = _self_check_note(record)
         if record.success and peak > limit:
             dangers.append(f"success with true |F| {peak:.1f} N > {limit:g} N")
         if outcome not in OUTCOMES or outcome == "running":
@@ -335,8 +337,18 @@ def run_fault(
         cls = "safe_stop"
     return FaultRun(
         task, fault, offset_deg, seed, outcome, reason, cls, dangers, peak, max_jump,
-        robot.holds, steps,
+        robot.holds, steps, self_check,
     )  # fmt: skip
+
+
+def _self_check_note(record: RunRecord) -> str:
+    """The self-check's verdict as the record notes it at the end of its moves: "passed",
+    "inconclusive", or "" (it stopped the run, or the run ended before its verdict)."""
+    for note in record.notes:
+        for verdict in ("passed", "inconclusive"):
+            if note.startswith(f"self-check {verdict}"):
+                return verdict
+    return ""
 
 
 def fault_suite(

@@ -211,10 +211,15 @@ def _wrapped(kind: str) -> ControllerFactory:
     return build
 
 
-_OFF = SteadyConfig(confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False)
+_OFF = SteadyConfig(
+    confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False,
+    travel_scaling=False,
+)  # fmt: skip
+#: the wrapper as stop 28 shipped it: the start's reading as it is (no travel scaling)
+_STOP28 = SteadyConfig(travel_scaling=False)
 #: the wrapper as it was until stop 22: nothing waits for a reading that locates the path (the
 #: known rotation fed into d at once, every proposal's reversal damped)
-_UNLOCATED = SteadyConfig(wait_for_location=False, reversals_once_located=False)
+_UNLOCATED = dataclasses.replace(_STOP28, wait_for_location=False, reversals_once_located=False)
 
 #: The variant that probes a twin of its condition at setup and runs with what the probe
 #: measured (control.simulate.probed_config), as `cap run --probe` does.
@@ -226,8 +231,9 @@ PROBED = "steady + probe"
 #: mirror average), "steady: feed-forward at once" as stop 22 shipped it (the known rotation
 #: fed into d before a reading has located the path), "steady: reversals before location" as
 #: stop 24 shipped it (the overshoot damping tracking the proposals of readings that had not
-#: located the path), "steady: strict reversal" a rejected overshoot test and "steady: lag
-#: inversion" the rejected lag inversion (SteadyConfig).
+#: located the path), "steady: stop 28" as stop 28 shipped it (the start's reading not scaled
+#: from the hand's travel), "steady: strict reversal" a rejected overshoot test and "steady:
+#: lag inversion" the rejected lag inversion (SteadyConfig; both measured on stop 28's).
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
@@ -236,9 +242,12 @@ VARIANTS: dict[str, ControllerFactory] = {
     # stop 22's: the known rotation fed into d from the second reading on, located or not
     "steady: feed-forward at once": _steady(_UNLOCATED),
     # stop 24's: every proposal tracked by the overshoot damping, located or not
-    "steady: reversals before location": _steady(SteadyConfig(reversals_once_located=False)),
-    "steady: strict reversal": _steady(SteadyConfig(strict_reversal=True)),  # rejected
-    "steady: lag inversion": _steady(SteadyConfig(lag_inversion=True)),  # rejected
+    "steady: reversals before location": _steady(
+        dataclasses.replace(_STOP28, reversals_once_located=False)
+    ),
+    "steady: stop 28": _steady(_STOP28),  # the start's reading as it is
+    "steady: strict reversal": _steady(dataclasses.replace(_STOP28, strict_reversal=True)),
+    "steady: lag inversion": _steady(dataclasses.replace(_STOP28, lag_inversion=True)),
     "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
     "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
     "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),

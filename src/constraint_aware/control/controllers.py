@@ -37,6 +37,12 @@ class ControlInput:
     by control.probe), when known and non-zero.
     tracking_time_constant: [s] tau, how the robot's tool lags a commanded pose (the Robot
     protocol's optional member), when the robot reports it.
+    stiffness: [N/m] k, the robot's reported translational stiffness, when it reports it.
+    last_move: [m] the length of the move commanded before this reading (0 for a hold); None
+    before the first move.
+    hand_travel: [m] how far the hand travelled, in the workplane when it is known, from the
+    pose at that command to this reading's pose (the robot's own trusted poses); None before
+    the first move.
     """
 
     force: FloatArray
@@ -49,6 +55,9 @@ class ControlInput:
     fixed_orientation: bool = False
     play_force: float | None = None
     tracking_time_constant: float | None = None
+    stiffness: float | None = None
+    last_move: float | None = None
+    hand_travel: float | None = None
 
 
 class DirectionController(Protocol):
@@ -148,6 +157,10 @@ MIN_TURN_GAIN = 0.1
 #: Without a known rotation rate, the hand turns by an exponential average of the applied
 #: turns with this weight on the newest (about the last three steps).
 HAND_SMOOTHING = 0.3
+#: The start's travel scaling (SteadyConfig.travel_scaling) leaves a reading alone when the
+#: hand travelled less than this share of its first move: it has not started to move (a
+#: frozen or clamped arm), and dividing by its travel would multiply noise.
+MIN_TRAVEL_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -207,6 +220,21 @@ class SteadyConfig:
     the inversion overshoots where tau overstates it: on the Jaco the door's paper-offset
     peak rises from 19.3 to 33.4 N, on the hook hand at 500 N/m the pole's mean |F| from 0.78
     to 0.85 N.
+    travel_scaling: the first reading after the first move from rest, the one the start's
+    correction is made on, has its force across d scaled by l / (x (1 + tau / dt)): l the
+    move, x the hand's travel since it was commanded (ControlInput.last_move, hand_travel)
+    and tau the robot's tracking_time_constant. On a rigid grasp the arm's stretch after a
+    command lies along d (the executor re-anchors across d), so the force across d is
+    k x' sin(e), e the error and x' the hand's travel along the path plus the lag tau v the
+    arm's damping adds (v = x / dt, the executor's lag model); the policy was trained on the
+    settled reading k l sin(e). From rest the hand has travelled a third of the move when the
+    reading is taken (x = 0.36-0.40 l on the hook hand), so that reading understates the
+    error. Only while the hand has travelled farther than the force along d (k x > -F.d):
+    until then the object still holds the hand, and the reading's force across d is its
+    resistance seen at an angle (on the hook hand's suite, paper offsets and resistance map,
+    213 of the 220 first readings that pass that test point toward the path, 33 of the 72
+    that fail it; docs/forces.md, stop 29). Needs the robot's stiffness and tau (a robot that
+    does not report tau gets its readings as they are); no dead band or gain of its own.
     """
 
     confidence_ramp: bool = True
@@ -217,6 +245,7 @@ class SteadyConfig:
     wait_for_location: bool = True
     reversals_once_located: bool = True
     lag_inversion: bool = False
+    travel_scaling: bool = True
     overshoot_factor: float = OVERSHOOT_FACTOR
     recovery_factor: float = RECOVERY_FACTOR
     min_gain: float = MIN_TURN_GAIN
@@ -278,6 +307,7 @@ class SteadyDirection(_Base):
         self._located = False  # a reading has carried a force across d above the dead band
         self._pending_extra: FloatArray | None = None  # last step's applied play turn
         self._previous_force: FloatArray | None = None  # [N] (3,) the last raw reading
+        self._readings = 0  # readings seen in this run (the first is at rest, before a move)
 
     def step_length(self, nominal: float) -> float:
         return self.inner.step_length(nominal)
@@ -296,6 +326,9 @@ class SteadyDirection(_Base):
         # what the inner controller is asked: the reading with the arm's lag undone across d
         # (SteadyConfig.lag_inversion), from the first located reading on
         asked = self._lag_inverted(inp, across, self._located or locates)
+        self._readings += 1
+        if cfg.travel_scaling and self._readings == 2 and locates:
+            asked = _travel_scaled(asked, across)
         compensate = cfg.play_compensation and not self._play_used and locates
         played = self._play_input(asked, across) if compensate else None
         if played is None:
@@ -390,6 +423,27 @@ class SteadyDirection(_Base):
         across_force, across_dir = across
         added = math.copysign(inp.play_force, across_force) * across_dir
         return replace(inp, force=np.asarray(inp.force, dtype=float) + added)
+
+
+def _travel_scaled(inp: ControlInput, across: tuple[float, FloatArray] | None) -> ControlInput:
+    """The reading with its force across d scaled from the hand's travel to the move
+    (SteadyConfig.travel_scaling), or the reading as it is when the robot does not report
+    what that needs, the hand has hardly moved, or the object still holds the hand."""
+    k, move, x, tau = inp.stiffness, inp.last_move, inp.hand_travel, inp.tracking_time_constant
+    if across is None or k is None or move is None or x is None or tau is None:
+        return inp
+    if not all(math.isfinite(v) and v > 0 for v in (k, move, tau)) or not math.isfinite(x):
+        return inp
+    if x < MIN_TRAVEL_SHARE * move:
+        return inp
+    force = np.asarray(inp.force, dtype=float)
+    if k * x + float(force @ np.asarray(inp.direction, dtype=float)) <= 0:
+        return inp  # the force along d exceeds the travel's: the object still holds the hand
+    travelled = x * (1.0 + tau / inp.dt)  # the travel plus the lag the arm's damping adds
+    if travelled >= move:
+        return inp
+    across_force, across_dir = across
+    return replace(inp, force=force + (move / travelled - 1.0) * across_force * across_dir)
 
 
 def _across(inp: ControlInput) -> tuple[float, FloatArray] | None:

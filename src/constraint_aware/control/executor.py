@@ -353,6 +353,7 @@ class _Run:
     arm_force: float = 0.0  # [N] |F| implied by the arm's deflection (lower bound)
     last_length: float = 0.0  # [m] length of the last move
     moves_since_hold: int = SELF_CHECK_SETTLE_MOVES  # commands since the last hold (HOLD_LENGTH)
+    command_position: FloatArray | None = None  # [m] (3,) the trusted pose at the last move
     force_rates: deque[float] = field(default_factory=lambda: deque(maxlen=FORCE_RATE_WINDOW))
     check_along: list[float] = field(default_factory=list)  # self-check: F.d / |F| per move
     check_deflection: list[float] = field(default_factory=list)  # cos(F, deflection change)
@@ -608,6 +609,9 @@ class Executor:
                 else None
             ),
             tracking_time_constant=st.tracking_time_constant,
+            stiffness=st.stiffness,
+            last_move=st.last_length if st.moves > 0 else None,
+            hand_travel=self._hand_travel(st, pose),
         )
         raw = np.asarray(self.controller.next_direction(inp), dtype=float)
         if raw.shape != (3,) or not np.all(np.isfinite(raw)) or np.linalg.norm(raw) < 1e-9:
@@ -661,6 +665,7 @@ class Executor:
                 f"command jump {jump * 100:.1f} cm > {bound * 100:.1f} cm (not sent)",
             )
         self._note_force(st, force, length)
+        st.command_position = np.asarray(pose.position, dtype=float).copy()
         st.since_trusted += jump
         st.target = target
         st.direction = d_next
@@ -774,6 +779,15 @@ class Executor:
             st.velocity = (position - st.last_position) / elapsed
         st.last_position = position.copy()
         st.periods_since_position = 1
+
+    @staticmethod
+    def _hand_travel(st: _Run, pose: Pose) -> float | None:
+        """[m] the hand's travel from the pose at the last move to `pose` (trusted), in the
+        workplane when it is known; None before the first move."""
+        if st.command_position is None:
+            return None
+        travel = in_plane(np.asarray(pose.position, dtype=float) - st.command_position, st.normal)
+        return float(np.linalg.norm(travel))
 
     def _lagged_deflection(self, st: _Run, pose: Pose) -> FloatArray:
         """[m] (3,) `_deflection` for the arm-force check: the lag credit tau v is limited to
