@@ -318,3 +318,26 @@ def test_the_self_check_lets_a_handle_through_a_hold(seed: int) -> None:
     )
     assert record.outcome == "success", (record.outcome, record.reason)
     assert any(n.startswith("self-check passed") for n in record.notes), record.notes
+
+
+@pytest.mark.parametrize("offset", [30.0, -30.0])
+def test_the_start_travel_scaling_lowers_the_drawers_start_and_spares_a_resisting_one(
+    offset: float,
+) -> None:
+    """The drawer at the paper's offsets (noise seed 0): the reading after the first move,
+    scaled from the hand's travel (SteadyConfig.travel_scaling), turns d further at once, and
+    the peak (the next reading) falls: 11.02 -> 10.08 N at +30 deg, 10.84 -> 9.74 N at -30
+    deg (stop 28's controller: "steady: stop 28"). With 8 N of rail friction the first reading
+    has more force along d than the hand's travel explains (the drawer still holds the hand)
+    and is left as it is: the run is stop 28's, to the last bit."""
+    cond = Condition("paper offsets", offset, "drawer-opening", offset)
+    new, old = (run_variant(cond, v, 0) for v in ("steady", "steady: stop 28"))
+    assert new.success and old.success
+    assert new.peak_force_N < old.peak_force_N - 0.5
+    assert new.mean_force_N < old.mean_force_N
+    rail = dataclasses.replace(cond, axis="rail", overrides=(("object__frictionloss", 8.0),))
+    new, old = (run_variant(rail, v, 0) for v in ("steady", "steady: stop 28"))
+    assert new.success and (new.peak_force_N, new.mean_force_N) == (
+        old.peak_force_N,
+        old.mean_force_N,
+    )

@@ -72,7 +72,11 @@ class DirectionController(Protocol):
         ...
 
     def step_length(self, nominal: float) -> float:
-        """[m] translation this step; most controllers always move the nominal 1 cm."""
+        """[m] translation this step, in [0, nominal]; most controllers always move the
+        nominal 1 cm. 0 is a hold: with the executor's default `command_from="measured"` the
+        target is re-anchored at the measured pose in the workplane (up to the re-anchoring
+        limit), so the arm lets go of its in-plane stretch; the self-check does not judge the
+        reading after a hold nor the one after the next move (SELF_CHECK_SETTLE_MOVES)."""
         ...
 
     def hand_rotation(self) -> Rotation | None:
@@ -228,7 +232,7 @@ class SteadyConfig:
     k x' sin(e), e the error and x' the hand's travel along the path plus the lag tau v the
     arm's damping adds (v = x / dt, the executor's lag model); the policy was trained on the
     settled reading k l sin(e). From rest the hand has travelled a third of the move when the
-    reading is taken (x = 0.36-0.40 l on the hook hand), so that reading understates the
+    reading is taken (x = 0.33-0.41 l on the hook hand), so that reading understates the
     error. Only while the hand has travelled farther than the force along d (k x > -F.d):
     until then the object still holds the hand, and the reading's force across d is its
     resistance seen at an angle (on the hook hand's suite, paper offsets and resistance map,
@@ -270,7 +274,9 @@ class SteadyDirection(_Base):
     controller, whose hand turns at the known w = v / r, has 3.6 N. On the drawer the same
     kicks, one step and its reversal, double the mean |F|.
 
-    Each step: the inner controller proposes d' (3,); the turn d -> d' (a rotation vector,
+    Each step: the inner controller proposes d' (3,) (on the reading after the first move,
+    with its force across d scaled from the hand's travel to the move:
+    SteadyConfig.travel_scaling); the turn d -> d' (a rotation vector,
     any axis) is scaled by the confidence ramp and the overshoot gain (which tracks the
     proposals once a reading has located the path), plus the feed-forward
     turn about the workplane normal when the rotation rate is known and a reading has located
@@ -278,7 +284,8 @@ class SteadyDirection(_Base):
     it. The hand rotation (revolute, asked by the executor) is the known rate's, or the
     smoothed turn; None on a fixed-orientation grasp (the executor's torque policy).
     Nothing depends on a policy file or a task: the inputs are the force, the dead band, the
-    workplane normal and, when given, the rotation rate.
+    workplane normal and, when given, the rotation rate and what the executor reports of the
+    robot (its stiffness, tau, the last move and the hand's travel).
     """
 
     def __init__(
