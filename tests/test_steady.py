@@ -479,3 +479,16 @@ def test_the_travel_scaling_acts_on_the_reading_after_the_first_move_only() -> N
     inner = Recording()
     _across_run(SteadyDirection(inner, config=off), [0.1, 2.0, 2.0], **TRAVEL)
     assert inner.seen == pytest.approx([0.1, 2.0, 2.0])
+
+
+@pytest.mark.parametrize("case", ["known rotation rate", "torque policy"])
+def test_the_travel_scaling_leaves_a_first_move_that_turned_the_hand_alone(case: str) -> None:
+    """The travel model describes a translating hand: with a known rotation rate the hand
+    turns by w dt on the first move, and on a fixed-orientation grasp the torque policy may
+    turn it; the reading after that move is passed as read."""
+    inner = Recording()
+    cfg = SteadyConfig(rotation_feedforward=case == "known rotation rate")
+    ctrl = SteadyDirection(inner, rotation_rate=0.2, config=cfg)
+    extra = {"fixed_orientation": True} if case == "torque policy" else {}
+    _across_run(ctrl, [0.1, 2.0, 2.0], **TRAVEL, **extra)
+    assert inner.seen == pytest.approx([0.1, 2.0, 2.0])

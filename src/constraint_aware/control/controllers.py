@@ -237,8 +237,12 @@ class SteadyConfig:
     until then the object still holds the hand, and the reading's force across d is its
     resistance seen at an angle (on the hook hand's suite, paper offsets and resistance map,
     213 of the 220 first readings that pass that test point toward the path, 33 of the 72
-    that fail it; docs/forces.md, stop 29). Needs the robot's stiffness and tau (a robot that
-    does not report tau gets its readings as they are); no dead band or gain of its own.
+    that fail it; docs/forces.md, stop 29). Only after a first move that translated the hand:
+    a hand turned with it (the known rotation rate's w dt on a revolute joint, or the torque
+    policy's turn) adds the twist's force, which the model does not describe (on the Jaco's
+    wrap grasp 1.2-1.5 N across d, away from the path at the door's +15 deg). Needs the
+    robot's stiffness and tau (a robot that does not report tau gets its readings as they
+    are); no dead band or gain of its own.
     """
 
     confidence_ramp: bool = True
@@ -334,7 +338,12 @@ class SteadyDirection(_Base):
         # (SteadyConfig.lag_inversion), from the first located reading on
         asked = self._lag_inverted(inp, across, self._located or locates)
         self._readings += 1
-        if cfg.travel_scaling and self._readings == 2 and locates:
+        # the travel model describes a translating hand: after a first move that also turned
+        # the hand (or left it to the torque policy), the reading carries the twist as well
+        translated = not inp.fixed_orientation and (
+            self._rotation is None or self._rotation.magnitude() < 1e-12
+        )
+        if cfg.travel_scaling and self._readings == 2 and locates and translated:
             asked = _travel_scaled(asked, across)
         compensate = cfg.play_compensation and not self._play_used and locates
         played = self._play_input(asked, across) if compensate else None
