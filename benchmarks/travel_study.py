@@ -68,12 +68,12 @@ from constraint_aware.bench.analysis import (
     resistance_map,
     suite_conditions,
 )
+from constraint_aware.bench.forces import STOP28
 from constraint_aware.control.controllers import (
     MIN_TRAVEL_SHARE,
     ControlInput,
     DirectionController,
     PolicyController,
-    SteadyConfig,
     SteadyDirection,
     _across,
     make_controller,
@@ -244,8 +244,7 @@ def one_run(cond: Condition, seed: int, variant: str) -> dict[str, Any]:
     ctrl: DirectionController
     # stop 28's `policy`: the start's reading as it is, under every variant
     stop28 = SteadyDirection(
-        PolicyController(policy, mirror=True), prep.rotation_rate,
-        SteadyConfig(travel_scaling=False), name="policy",
+        PolicyController(policy, mirror=True), prep.rotation_rate, STOP28, name="policy",
     )  # fmt: skip
     if variant == "policy: stop 28":
         ctrl = stop28

@@ -86,13 +86,6 @@ def test_the_lag_model_still_catches_the_faults(task: str, fault: str) -> None:
     """With the robot reporting its tracking_time_constant (c / k of the hook hand's arm), the
     faults the arm-deflection guards catch are still caught, as without it."""
     result = run_fault(task, fault, policy=POLICY, lag=hook_hand_time_constant)
-    if fault in CONVENTION_FAULTS and result.classification == "continued":
-        # A run whose moves stay under the self-check's SELF_CHECK_MIN_FORCE cannot be
-        # judged: the drawer with a frame rotated 90 deg, whose first (rotated) reading the
-        # start's travel scaling turned to 3.9 deg off the path (stop 29): 1 of the 3 moves
-        # needed, the run succeeded at a true peak of 3.7 N. Never "passed".
-        assert result.self_check == "inconclusive", (task, fault, result)
-        return
     assert result.classification == "safe_stop", (task, fault, result.outcome, result.reason)
     assert result.outcome in LAG_GUARD_FAULTS[fault], (task, fault, result.reason)
 

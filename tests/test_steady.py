@@ -492,3 +492,36 @@ def test_the_travel_scaling_leaves_a_first_move_that_turned_the_hand_alone(case:
     extra = {"fixed_orientation": True} if case == "torque policy" else {}
     _across_run(ctrl, [0.1, 2.0, 2.0], **TRAVEL, **extra)
     assert inner.seen == pytest.approx([0.1, 2.0, 2.0])
+
+
+def _one_reading(along: float, across: float, **kw: object) -> float:
+    """The force across d [N] the inner controller is asked on the reading after the first
+    move (the reading at rest first), for a reading of `along` d + `across` (n x d) [N]."""
+    inner = Recording()
+    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    ctrl.reset(X)
+    m = np.cross(N, X)
+    for f in (np.zeros(3), along * X + across * m):
+        ctrl.next_direction(ControlInput(f, np.zeros(3), X, DT, 0.4, N, **kw))  # type: ignore[arg-type]
+    return inner.seen[-1]
+
+
+def test_the_travel_scaling_leaves_a_push_along_d_and_a_hand_that_has_not_started_alone() -> None:
+    """A passive object starting from rest holds the hand back: a reading with F.d > 0 (a
+    wrong wrench convention, not yet judged by the self-check) is passed as read, and so is
+    one after a travel under a tenth of the move (here k x = 1 N explains the 0.5 N along d,
+    so only MIN_TRAVEL_SHARE leaves it alone)."""
+    kw = {**TRAVEL, "hand_travel": 0.004}
+    assert _one_reading(-0.5, 2.0, **kw) == pytest.approx(2.0 / 0.6)
+    assert _one_reading(+0.5, 2.0, **kw) == pytest.approx(2.0)
+    kw = {**TRAVEL, "hand_travel": 0.0005}
+    assert _one_reading(-0.5, 2.0, **kw) == pytest.approx(2.0)
+
+
+def test_the_travel_scaling_never_exceeds_the_models_largest_force_across_d() -> None:
+    """k l sin(e) <= k l: with k = 300 N/m (k x = 1.2 N explains the 0.5 N along d) the 1 cm
+    move's 3 N caps 2.4 N x 10 / 6 = 4 N, on either side."""
+    kw = {**TRAVEL, "stiffness": 300.0}
+    assert _one_reading(-0.5, 2.4, **kw) == pytest.approx(3.0)
+    assert _one_reading(-0.5, -2.4, **kw) == pytest.approx(-3.0)
+    assert _one_reading(-0.5, 1.2, **kw) == pytest.approx(2.0)

@@ -216,10 +216,10 @@ _OFF = SteadyConfig(
     travel_scaling=False,
 )  # fmt: skip
 #: the wrapper as stop 28 shipped it: the start's reading as it is (no travel scaling)
-_STOP28 = SteadyConfig(travel_scaling=False)
+STOP28 = SteadyConfig(travel_scaling=False)
 #: the wrapper as it was until stop 22: nothing waits for a reading that locates the path (the
 #: known rotation fed into d at once, every proposal's reversal damped)
-_UNLOCATED = dataclasses.replace(_STOP28, wait_for_location=False, reversals_once_located=False)
+_UNLOCATED = dataclasses.replace(STOP28, wait_for_location=False, reversals_once_located=False)
 
 #: The variant that probes a twin of its condition at setup and runs with what the probe
 #: measured (control.simulate.probed_config), as `cap run --probe` does.
@@ -243,11 +243,11 @@ VARIANTS: dict[str, ControllerFactory] = {
     "steady: feed-forward at once": _steady(_UNLOCATED),
     # stop 24's: every proposal tracked by the overshoot damping, located or not
     "steady: reversals before location": _steady(
-        dataclasses.replace(_STOP28, reversals_once_located=False)
+        dataclasses.replace(STOP28, reversals_once_located=False)
     ),
-    "steady: stop 28": _steady(_STOP28),  # the start's reading as it is
-    "steady: strict reversal": _steady(dataclasses.replace(_STOP28, strict_reversal=True)),
-    "steady: lag inversion": _steady(dataclasses.replace(_STOP28, lag_inversion=True)),
+    "steady: stop 28": _steady(STOP28),  # the start's reading as it is
+    "steady: strict reversal": _steady(dataclasses.replace(STOP28, strict_reversal=True)),
+    "steady: lag inversion": _steady(dataclasses.replace(STOP28, lag_inversion=True)),
     "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
     "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
     "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),

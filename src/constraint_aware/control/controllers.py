@@ -41,8 +41,8 @@ class ControlInput:
     last_move: [m] the length of the move commanded before this reading (0 for a hold); None
     before the first move.
     hand_travel: [m] how far the hand travelled, in the workplane when it is known, from the
-    pose at that command to this reading's pose (the robot's own trusted poses); None before
-    the first move.
+    trusted pose at the last command to this reading's pose (after the executor's own holds,
+    which send no command, that spans their periods too); None before the first move.
     """
 
     force: FloatArray
@@ -235,9 +235,14 @@ class SteadyConfig:
     reading is taken (x = 0.33-0.41 l on the hook hand), so that reading understates the
     error. Only while the hand has travelled farther than the force along d (k x > -F.d):
     until then the object still holds the hand, and the reading's force across d is its
-    resistance seen at an angle (on the hook hand's suite, paper offsets and resistance map,
-    213 of the 220 first readings that pass that test point toward the path, 33 of the 72
-    that fail it; docs/forces.md, stop 29). Only after a first move that translated the hand:
+    resistance seen at an angle (on the hook hand's drawer, plate and pole, suite, paper
+    offsets and resistance map: all 153 first readings that pass that test point toward the
+    path, 29 of the 49 that fail it; docs/forces.md, stop 29). Not on a push along d (F.d > 0:
+    a passive object starting from rest holds the hand back, so that is a wrong wrench
+    convention the self-check has not judged yet), nor after a travel under MIN_TRAVEL_SHARE
+    of the move; the scaled force never exceeds k l, the model's largest. Not together with
+    lag_inversion, which undoes the lag on that reading already. Only after a first move that
+    translated the hand:
     a hand turned with it (the known rotation rate's w dt on a revolute joint, or the torque
     policy's turn) adds the twist's force, which the model does not describe (on the Jaco's
     wrap grasp 1.2-1.5 N across d, away from the path at the door's +15 deg). Needs the
@@ -343,7 +348,9 @@ class SteadyDirection(_Base):
         translated = not inp.fixed_orientation and (
             self._rotation is None or self._rotation.magnitude() < 1e-12
         )
-        if cfg.travel_scaling and self._readings == 2 and locates and translated:
+        # (not with lag_inversion, which already undoes the lag on this reading)
+        scale = cfg.travel_scaling and not cfg.lag_inversion
+        if scale and self._readings == 2 and locates and translated:
             asked = _travel_scaled(asked, across)
         compensate = cfg.play_compensation and not self._play_used and locates
         played = self._play_input(asked, across) if compensate else None
@@ -448,18 +455,23 @@ def _travel_scaled(inp: ControlInput, across: tuple[float, FloatArray] | None) -
     k, move, x, tau = inp.stiffness, inp.last_move, inp.hand_travel, inp.tracking_time_constant
     if across is None or k is None or move is None or x is None or tau is None:
         return inp
-    if not all(math.isfinite(v) and v > 0 for v in (k, move, tau)) or not math.isfinite(x):
+    if not all(math.isfinite(v) and v > 0 for v in (k, move, tau, inp.dt)):
         return inp
-    if x < MIN_TRAVEL_SHARE * move:
+    if not math.isfinite(x) or x < MIN_TRAVEL_SHARE * move:
         return inp
     force = np.asarray(inp.force, dtype=float)
-    if k * x + float(force @ np.asarray(inp.direction, dtype=float)) <= 0:
-        return inp  # the force along d exceeds the travel's: the object still holds the hand
+    along = float(force @ np.asarray(inp.direction, dtype=float))
+    # a passive object starting from rest holds the hand back (F.d <= 0): a push along d is
+    # not this model's (a wrong wrench convention, which the self-check has not judged yet)
+    if along > 0 or k * x + along <= 0:
+        return inp  # ... or the force along d exceeds the travel's: the object holds the hand
     travelled = x * (1.0 + tau / inp.dt)  # the travel plus the lag the arm's damping adds
     if travelled >= move:
         return inp
     across_force, across_dir = across
-    return replace(inp, force=force + (move / travelled - 1.0) * across_force * across_dir)
+    # never more than the model's largest force across d, k l sin(e) <= k l
+    scaled = math.copysign(min(abs(across_force) * move / travelled, k * move), across_force)
+    return replace(inp, force=force + (scaled - across_force) * across_dir)
 
 
 def _across(inp: ControlInput) -> tuple[float, FloatArray] | None:

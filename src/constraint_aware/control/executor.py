@@ -138,14 +138,15 @@ CONFIRM_LAG_SHARE = 0.5
 #: [m] a command shorter than this is a hold: the hand stops (a controller's zero-length step,
 #: or the executor keeping the last target on an untrusted pose or a runaway lead).
 HOLD_LENGTH = 1e-4
-#: After a hold the self-check judges readings again only from this many moves on. The lag
+#: After a hold the self-check's F.d test and its half-lag confirmation take readings again
+#: only from this many moves on (the cosine with the deflection takes every reading). The lag
 #: model credits tau v, which describes a hand moving steadily behind its target; the reading
 #: after a hold (the hand and the object settling, the object's inertia pushing the hand along
 #: d) and the one after the hand starts again are transients it does not describe. Measured
 #: (hook hand, handle suite, the `policy` controller holding one period after its first move,
 #: benchmarks/travel_study.py): F.d/|F| +0.95 and +0.58 on those two readings, cos(F,
-#: deflection) with half the lag -0.39 on the second, and 3 of 20 healthy runs stopped
-#: `sensor_convention`; judging from the second move after the hold on, all 20 succeed.
+#: deflection) with half the lag -0.39 on the second (full lag: 1.0 and -0.15), and 3 of 20
+#: healthy runs stopped `sensor_convention`; without those two readings there, all 20 succeed.
 SELF_CHECK_SETTLE_MOVES = 2
 
 
@@ -886,21 +887,25 @@ class Executor:
         return why
 
     def _self_check_verdict(self, st: _Run, force: FloatArray, pose: Pose) -> str:
-        if st.moves_since_hold < SELF_CHECK_SETTLE_MOVES:
-            return ""  # a hand stopping or starting again: not judged (SELF_CHECK_SETTLE_MOVES)
+        # A hand stopping or starting again (SELF_CHECK_SETTLE_MOVES): its reading is compared
+        # with the deflection (a wrong convention disagrees with it whatever the hand does:
+        # ~ -1 flipped, ~ 0 rotated), but it is not held against F.d nor used to confirm.
+        settled = st.moves_since_hold >= SELF_CHECK_SETTLE_MOVES
         # the workplane's components of F and of the deflection only (see SELF_CHECK_MIN_FORCE)
         force = in_plane(force, st.normal)
         magnitude = float(np.linalg.norm(force))
         if magnitude < self._min_check_force(st):
             return ""
-        st.check_along.append(float(force @ st.direction) / magnitude)
+        if settled:
+            st.check_along.append(float(force @ st.direction) / magnitude)
         deflection = in_plane(self._deflection(st, pose), st.normal)
         size = float(np.linalg.norm(deflection))
         if size > self._min_check_deflection(st):
             st.check_deflection.append(float(force @ deflection) / (magnitude * size))
-            half = in_plane(self._deflection(st, pose, CONFIRM_LAG_SHARE), st.normal)
-            half_size = max(float(np.linalg.norm(half)), 1e-12)
-            st.check_confirm.append(float(force @ half) / (magnitude * half_size))
+            if settled:
+                half = in_plane(self._deflection(st, pose, CONFIRM_LAG_SHARE), st.normal)
+                half_size = max(float(np.linalg.norm(half)), 1e-12)
+                st.check_confirm.append(float(force @ half) / (magnitude * half_size))
         # With half the lag credited F agrees with the deflection: the full credit tau v is
         # what disagrees, not the convention. At full speed against a steady resistance the
         # lag model over-credits and cancels the deflection along d (hook hand, handle with a
@@ -959,7 +964,7 @@ class Executor:
         test is not applied. (The second median keeps an over-reported lag from confirming:
         an excess lag credit adds deflection along the motion, which a frame rotated 90 deg
         can match.)"""
-        if len(st.check_deflection) < SELF_CHECK_MIN_SAMPLES:
+        if min(len(st.check_deflection), len(st.check_confirm)) < SELF_CHECK_MIN_SAMPLES:
             return False
         return _agree(st.check_deflection) and _agree(st.check_confirm)
 
