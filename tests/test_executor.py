@@ -486,6 +486,30 @@ def test_a_hold_does_not_hide_a_flipped_sign() -> None:
     assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
 
 
+class HoldEveryOther(FixedDirection):
+    """Commands a hold (a zero-length step) on every other step."""
+
+    def reset(self, direction: np.ndarray) -> None:
+        self.calls = 0
+
+    def next_direction(self, inp: ControlInput) -> np.ndarray:
+        self.calls += 1
+        return inp.direction
+
+    def step_length(self, nominal: float) -> float:
+        return 0.0 if self.calls % 2 == 0 else nominal
+
+
+def test_holds_on_every_other_step_do_not_hide_a_flipped_sign() -> None:
+    """Every reading then follows a hold or a restart, which the F.d test and the half-lag
+    confirmation skip (SELF_CHECK_SETTLE_MOVES); the cosine with the deflection still takes
+    them, and a flipped sign reads ~ -1 there whatever the hand does."""
+    rec = Executor(Flipped(), HoldEveryOther(), ExecutorConfig(max_steps=40)).run(d0(30))
+    assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
+    rec = Executor(FakeGuide(), HoldEveryOther(), ExecutorConfig(max_steps=40)).run(d0(30))
+    assert rec.outcome == "timeout", rec.reason
+
+
 class Inputs(FixedDirection):
     """Keeps d and records what it was given each step."""
 
