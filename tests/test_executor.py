@@ -6,6 +6,7 @@ import json
 import math
 import subprocess
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -457,37 +458,13 @@ def test_self_check_names_a_flipped_sign() -> None:
     assert any(n.startswith("self-check passed") for n in rec.notes)
 
 
-class HoldAfterFirstMove(FixedDirection):
-    """Keeps d and commands a zero-length step (a hold) after the first move, as the
-    `DirectionController` protocol allows."""
+class Holds(FixedDirection):
+    """Keeps d and commands a zero-length step (a hold, as the `DirectionController` protocol
+    allows) on the calls `holds(call)` names (call 1 is the reading at rest, before the first
+    move)."""
 
-    def reset(self, direction: np.ndarray) -> None:
-        self.calls = 0
-
-    def next_direction(self, inp: ControlInput) -> np.ndarray:
-        self.calls += 1  # call 1 is the reading at rest, before the first move
-        return inp.direction
-
-    def step_length(self, nominal: float) -> float:
-        return 0.0 if self.calls == 2 else nominal
-
-
-def test_a_hold_does_not_hide_a_flipped_sign() -> None:
-    """The self-check skips the reading after a hold and the one after the hand starts again
-    (SELF_CHECK_SETTLE_MOVES), and judges the moves after them: a flipped sign is still
-    caught, within the self-check's moves."""
-    cfg = ExecutorConfig()
-    rec = Executor(Flipped(), HoldAfterFirstMove(), cfg).run(d0(30))
-    assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
-    assert rec.n_steps <= cfg.self_check_steps + 1
-    healthy = Executor(FakeGuide(), HoldAfterFirstMove(), ExecutorConfig(max_steps=10))
-    rec = healthy.run(d0(30))
-    assert rec.outcome == "timeout"
-    assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
-
-
-class HoldEveryOther(FixedDirection):
-    """Commands a hold (a zero-length step) on every other step."""
+    def __init__(self, holds: Callable[[int], bool]) -> None:
+        self.holds = holds
 
     def reset(self, direction: np.ndarray) -> None:
         self.calls = 0
@@ -497,16 +474,31 @@ class HoldEveryOther(FixedDirection):
         return inp.direction
 
     def step_length(self, nominal: float) -> float:
-        return 0.0 if self.calls % 2 == 0 else nominal
+        return 0.0 if self.holds(self.calls) else nominal
+
+
+def test_a_hold_does_not_hide_a_flipped_sign() -> None:
+    """The reading after a hold and the one after the hand starts again are compared with the
+    deflection only (SELF_CHECK_SETTLE_MOVES); a flipped sign is still caught, within the
+    self-check's moves, and a healthy run passes."""
+    cfg = ExecutorConfig()
+    rec = Executor(Flipped(), Holds(lambda call: call == 2), cfg).run(d0(30))
+    assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
+    assert rec.n_steps <= cfg.self_check_steps + 1
+    healthy = Executor(FakeGuide(), Holds(lambda call: call == 2), ExecutorConfig(max_steps=10))
+    rec = healthy.run(d0(30))
+    assert rec.outcome == "timeout"
+    assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
 
 
 def test_holds_on_every_other_step_do_not_hide_a_flipped_sign() -> None:
     """Every reading then follows a hold or a restart, which the F.d test and the half-lag
     confirmation skip (SELF_CHECK_SETTLE_MOVES); the cosine with the deflection still takes
     them, and a flipped sign reads ~ -1 there whatever the hand does."""
-    rec = Executor(Flipped(), HoldEveryOther(), ExecutorConfig(max_steps=40)).run(d0(30))
+    every_other = Holds(lambda call: call % 2 == 0)
+    rec = Executor(Flipped(), every_other, ExecutorConfig(max_steps=40)).run(d0(30))
     assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
-    rec = Executor(FakeGuide(), HoldEveryOther(), ExecutorConfig(max_steps=40)).run(d0(30))
+    rec = Executor(FakeGuide(), every_other, ExecutorConfig(max_steps=40)).run(d0(30))
     assert rec.outcome == "timeout", rec.reason
 
 

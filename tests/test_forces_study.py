@@ -303,7 +303,7 @@ def test_the_self_check_lets_a_handle_through_a_hold(seed: int) -> None:
     seeds 8 and 13 of the stop-28 travel study): after the hold the handle's inertia pushes the
     hand along d (F.d/|F| +0.95, then +0.58 as the hand starts again, where the lag model's
     half-credit cosine reads -0.39), and the self-check stopped these healthy runs
-    `sensor_convention`. It now judges from the second move after a hold on."""
+    `sensor_convention`. Those two readings are now compared with the deflection only."""
     cond, _ = next(
         (c, s) for c, s in suite_conditions(20) if c.task == "handle-rotating" and s == seed
     )

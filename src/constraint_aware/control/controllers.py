@@ -75,8 +75,9 @@ class DirectionController(Protocol):
         """[m] translation this step, in [0, nominal]; most controllers always move the
         nominal 1 cm. 0 is a hold: with the executor's default `command_from="measured"` the
         target is re-anchored at the measured pose in the workplane (up to the re-anchoring
-        limit), so the arm lets go of its in-plane stretch; the self-check does not judge the
-        reading after a hold nor the one after the next move (SELF_CHECK_SETTLE_MOVES)."""
+        limit), so the arm lets go of its in-plane stretch; the self-check compares the reading
+        after a hold and the one after the next move with the arm's deflection only
+        (SELF_CHECK_SETTLE_MOVES)."""
         ...
 
     def hand_rotation(self) -> Rotation | None:
@@ -343,14 +344,9 @@ class SteadyDirection(_Base):
         # (SteadyConfig.lag_inversion), from the first located reading on
         asked = self._lag_inverted(inp, across, self._located or locates)
         self._readings += 1
-        # the travel model describes a translating hand: after a first move that also turned
-        # the hand (or left it to the torque policy), the reading carries the twist as well
-        translated = not inp.fixed_orientation and (
-            self._rotation is None or self._rotation.magnitude() < 1e-12
-        )
         # (not with lag_inversion, which already undoes the lag on this reading)
-        scale = cfg.travel_scaling and not cfg.lag_inversion
-        if scale and self._readings == 2 and locates and translated:
+        scale = cfg.travel_scaling and not cfg.lag_inversion and self._readings == 2
+        if scale and locates and self._translated(inp):
             asked = _travel_scaled(asked, across)
         compensate = cfg.play_compensation and not self._play_used and locates
         played = self._play_input(asked, across) if compensate else None
@@ -412,6 +408,14 @@ class SteadyDirection(_Base):
         else:
             self._rotation = Rotation.from_rotvec(per_step if known else self._smoothed)
         return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
+
+    def _translated(self, inp: ControlInput) -> bool:
+        """Whether the last move only translated the hand. The travel model describes a
+        translating hand: after a move that also turned it (this wrapper's hand rotation, or
+        the torque policy's on a fixed-orientation grasp) the reading carries the twist too."""
+        if inp.fixed_orientation:
+            return False
+        return self._rotation is None or self._rotation.magnitude() < 1e-12
 
     def _lag_inverted(
         self, inp: ControlInput, across: tuple[float, FloatArray] | None, located: bool

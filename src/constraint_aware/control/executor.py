@@ -835,7 +835,8 @@ class Executor:
         return max(0.0, k * float(np.linalg.norm(self._lagged_deflection(st, pose))) - allowance)
 
     def _note_force(self, st: _Run, force: FloatArray, length: float) -> None:
-        """Remember the force and the move for the force-rate estimate."""
+        """Remember the force and the move for the force-rate estimate, and count the moves
+        since the last hold (SELF_CHECK_SETTLE_MOVES)."""
         if st.last_force is not None and st.last_length > HOLD_LENGTH:
             st.force_rates.append(float(np.linalg.norm(force - st.last_force)) / st.last_length)
         st.last_force = force
