@@ -7,7 +7,7 @@ of door and drawer (default, classical, steady; the paper's offset and suite see
 transient vs steady force, the steady lag and zig-zag against the path's turn delta/r); the
 20-seed randomized suite and the paper's offsets for every variant, the paper's offsets over
 10 sensor-noise seeds for default, classical and steady; the resistance map for default,
-classical, steady, steady as stop 28 shipped it and steady without the known rate; where the
+classical, steady, steady as stops 28 and 29 shipped it and steady without the known rate; where the
 start gap to the classical controller comes from (the cells where steady is above it: the
 ground-truth references, the settled hand, a stiffer grasp, a grasp without play, and door
 and drawer suite seeds held out from the classical controller's tuning, with run-by-run
@@ -58,7 +58,9 @@ from constraint_aware.sim.hand import HandConfig
 from constraint_aware.sim.tasks import task_config
 
 DIAGNOSED = ("default", "classical", "steady", "steady: stop 17")
-MAP_VARIANTS = ("default", "classical", "steady", "steady: stop 28", "steady: no known rate")
+MAP_VARIANTS = (
+    "default", "classical", "steady", "steady: stop 28", "steady: stop 29", "steady: no known rate",
+)  # fmt: skip
 MAIN_VARIANTS = (
     "default",
     "classical",
@@ -67,6 +69,7 @@ MAIN_VARIANTS = (
     "steady: feed-forward at once",
     "steady: reversals before location",
     "steady: stop 28",
+    "steady: stop 29",
     PROBED,
 )
 #: the gap study: the library's controller and the classical one, the references, and both
@@ -76,6 +79,7 @@ GAP_VARIANTS = (
     "classical",
     "steady: reversals before location",
     "steady: stop 28",
+    "steady: stop 29",
     "steady: lag inversion",
     PROBED,
     *REFERENCES,

@@ -394,14 +394,16 @@ def test_the_arm_lag_is_undone_across_d_from_the_located_reading_on() -> None:
     assert [float(f @ N) for f in inner.forces] == pytest.approx([0.0] * 5)
 
 
-@pytest.mark.parametrize("case", ["no tau", "default (off)", "bad tau"])
+@pytest.mark.parametrize("case", ["no tau", "options off", "bad tau"])
 def test_without_a_reported_lag_or_with_the_option_off_the_readings_pass_as_read(
     case: str,
 ) -> None:
-    """The inversion is off by default (measured and rejected, SteadyConfig.lag_inversion)."""
+    """The inversion is off by default (measured and rejected, SteadyConfig.lag_inversion);
+    with the carry removal off too, every reading is passed as read."""
     inner = Recording()
-    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=case != "default (off)")
-    tau = {"no tau": None, "default (off)": HALF_TAU, "bad tau": math.nan}[case]
+    on = case != "options off"
+    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=on, carry_removal=on)
+    tau = {"no tau": None, "options off": HALF_TAU, "bad tau": math.nan}[case]
     _across_run(SteadyDirection(inner, config=cfg), [0.1, 2.0, 2.0, 1.0],
                 tracking_time_constant=tau)  # fmt: skip
     assert inner.seen == pytest.approx([0.1, 2.0, 2.0, 1.0])
@@ -433,13 +435,16 @@ def test_the_play_compensation_adds_to_the_lag_inverted_reading() -> None:
 #: reading is taken, tau = 0.05 s (x (1 + tau / dt) = 6 mm: the force across d x 10 / 6)
 TRAVEL = {"stiffness": 2000.0, "last_move": 0.01, "hand_travel": 0.004,
           "tracking_time_constant": 0.05}  # fmt: skip
+#: the travel scaling with nothing after it: the readings after the start's are passed as read
+#: (carry_removal would take exp(-2) of a same-signed last reading off them)
+TRAVEL_ONLY = SteadyConfig(rotation_feedforward=False, carry_removal=False)
 
 
 def test_the_first_reading_after_the_first_move_is_scaled_from_the_hand_travel() -> None:
     """Only the reading after the first move (the second: the first is at rest), only across
     d: 2 N -> 2 x 10 / 6 = 3.33 N; the 4 N along d (k x = 8 N explains it) as read."""
     inner = Recording()
-    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    ctrl = SteadyDirection(inner, config=TRAVEL_ONLY)
     _across_run(ctrl, [0.1, 2.0, 2.0], **TRAVEL)
     assert inner.seen == pytest.approx([0.1, 2.0 / 0.6, 2.0])
     assert [float(f @ X) for f in inner.forces] == pytest.approx([-4.0] * 3)
@@ -462,7 +467,7 @@ def test_the_travel_scaling_leaves_a_reading_it_cannot_ground_as_read(
     change: dict[str, object],
 ) -> None:
     inner = Recording()
-    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    ctrl = SteadyDirection(inner, config=TRAVEL_ONLY)
     _across_run(ctrl, [0.1, 2.0, 2.0], **{**TRAVEL, **change})
     assert inner.seen == pytest.approx([0.1, 2.0, 2.0])
 
@@ -472,10 +477,10 @@ def test_the_travel_scaling_acts_on_the_reading_after_the_first_move_only() -> N
     the next one (after a steady move) is not a start from rest, and is not scaled; nor is
     anything with the option off."""
     inner = Recording()
-    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    ctrl = SteadyDirection(inner, config=TRAVEL_ONLY)
     _across_run(ctrl, [0.1, 0.3, 2.0], **TRAVEL)
     assert inner.seen == pytest.approx([0.1, 0.3, 2.0])
-    off = SteadyConfig(rotation_feedforward=False, travel_scaling=False)
+    off = dataclasses.replace(TRAVEL_ONLY, travel_scaling=False)
     inner = Recording()
     _across_run(SteadyDirection(inner, config=off), [0.1, 2.0, 2.0], **TRAVEL)
     assert inner.seen == pytest.approx([0.1, 2.0, 2.0])
@@ -487,7 +492,7 @@ def test_the_travel_scaling_leaves_a_first_move_that_turned_the_hand_alone(case:
     turns by w dt on the first move, and on a fixed-orientation grasp the torque policy may
     turn it; the reading after that move is passed as read."""
     inner = Recording()
-    cfg = SteadyConfig(rotation_feedforward=case == "known rotation rate")
+    cfg = dataclasses.replace(TRAVEL_ONLY, rotation_feedforward=case == "known rotation rate")
     ctrl = SteadyDirection(inner, rotation_rate=0.2, config=cfg)
     extra = {"fixed_orientation": True} if case == "torque policy" else {}
     _across_run(ctrl, [0.1, 2.0, 2.0], **TRAVEL, **extra)
@@ -498,7 +503,7 @@ def _one_reading(along: float, across: float, **kw: object) -> float:
     """The force across d [N] the inner controller is asked on the reading after the first
     move (the reading at rest first), for a reading of `along` d + `across` (n x d) [N]."""
     inner = Recording()
-    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    ctrl = SteadyDirection(inner, config=TRAVEL_ONLY)
     ctrl.reset(X)
     m = np.cross(N, X)
     for f in (np.zeros(3), along * X + across * m):
@@ -525,3 +530,43 @@ def test_the_travel_scaling_never_exceeds_the_models_largest_force_across_d() ->
     assert _one_reading(-0.5, 2.4, **kw) == pytest.approx(3.0)
     assert _one_reading(-0.5, -2.4, **kw) == pytest.approx(-3.0)
     assert _one_reading(-0.5, 1.2, **kw) == pytest.approx(2.0)
+
+
+def test_a_reading_that_keeps_the_last_ones_sign_loses_its_carried_part() -> None:
+    """SteadyConfig.carry_removal (on), lam = 0.5: the first located reading (2 N, after the
+    first move) is passed as read, as the one before it was taken at rest; then 3 N after 2 N
+    -> 2 N, 1 N after 3 N -> 0 N (never past zero), -1 N after 1 N reverses and is passed as
+    read, -2 N after -1 N -> -1.5 N. Only across d: the -4 N along d as read."""
+    inner = Recording()
+    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    _across_run(ctrl, [0.1, 2.0, 3.0, 1.0, -1.0, -2.0], tracking_time_constant=HALF_TAU)
+    assert inner.seen == pytest.approx([0.1, 2.0, 2.0, 0.0, -1.0, -1.5])
+    assert [float(f @ X) for f in inner.forces] == pytest.approx([-4.0] * 6)
+    assert [float(f @ N) for f in inner.forces] == pytest.approx([0.0] * 6)
+
+
+def test_the_carry_removal_waits_for_a_located_reading() -> None:
+    """Readings inside the dead band across d (0.3 N) locate nothing and pass as read, however
+    their signs follow; from the first located one (2 N after 0.3 N: 1.85 N) on, every
+    same-signed reading loses its carried part, inside the band or not (0.3 N after 2 N: 0)."""
+    inner = Recording()
+    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    _across_run(ctrl, [0.1, 0.3, 0.3, 2.0, 0.3], tracking_time_constant=HALF_TAU)
+    assert inner.seen == pytest.approx([0.1, 0.3, 0.3, 1.85, 0.0])
+
+
+@pytest.mark.parametrize("tau", [None, math.nan, -0.1, 0.0])
+def test_the_carry_removal_needs_a_reported_lag(tau: float | None) -> None:
+    inner = Recording()
+    ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
+    _across_run(ctrl, [0.1, 2.0, 3.0, 1.0], tracking_time_constant=tau)
+    assert inner.seen == pytest.approx([0.1, 2.0, 3.0, 1.0])
+
+
+def test_the_lag_inversion_supersedes_the_carry_removal() -> None:
+    """Both on: the inversion's (F - lam F_prev) / (1 - lam), not the removal's F - lam F_prev."""
+    inner = Recording()
+    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=True, carry_removal=True)
+    _across_run(SteadyDirection(inner, config=cfg), [0.1, 2.0, 3.0],
+                tracking_time_constant=HALF_TAU)  # fmt: skip
+    assert inner.seen == pytest.approx([0.1, 3.9, 4.0])

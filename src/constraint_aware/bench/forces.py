@@ -213,10 +213,13 @@ def _wrapped(kind: str) -> ControllerFactory:
 
 _OFF = SteadyConfig(
     confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False,
-    travel_scaling=False,
+    travel_scaling=False, carry_removal=False,
 )  # fmt: skip
-#: the wrapper as stop 28 shipped it: the start's reading as it is (no travel scaling)
-STOP28 = SteadyConfig(travel_scaling=False)
+#: the wrapper as stop 29 shipped it: every located reading as read after the start's
+#: (no carry removal)
+STOP29 = SteadyConfig(carry_removal=False)
+#: the wrapper as stop 28 shipped it: the start's reading as it is too (no travel scaling)
+STOP28 = dataclasses.replace(STOP29, travel_scaling=False)
 #: the wrapper as it was until stop 22: nothing waits for a reading that locates the path (the
 #: known rotation fed into d at once, every proposal's reversal damped)
 _UNLOCATED = dataclasses.replace(STOP28, wait_for_location=False, reversals_once_located=False)
@@ -232,7 +235,8 @@ PROBED = "steady + probe"
 #: fed into d before a reading has located the path), "steady: reversals before location" as
 #: stop 24 shipped it (the overshoot damping tracking the proposals of readings that had not
 #: located the path), "steady: stop 28" as stop 28 shipped it (the start's reading not scaled
-#: from the hand's travel), "steady: strict reversal" a rejected overshoot test and "steady:
+#: from the hand's travel), "steady: stop 29" as stop 29 shipped it (no carry removal),
+#: "steady: strict reversal" a rejected overshoot test and "steady:
 #: lag inversion" the rejected lag inversion (SteadyConfig; both measured on stop 28's).
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
@@ -246,6 +250,7 @@ VARIANTS: dict[str, ControllerFactory] = {
         dataclasses.replace(STOP28, reversals_once_located=False)
     ),
     "steady: stop 28": _steady(STOP28),  # the start's reading as it is
+    "steady: stop 29": _steady(STOP29),  # every located reading as read
     "steady: strict reversal": _steady(dataclasses.replace(STOP28, strict_reversal=True)),
     "steady: lag inversion": _steady(dataclasses.replace(STOP28, lag_inversion=True)),
     "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),

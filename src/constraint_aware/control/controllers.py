@@ -249,6 +249,21 @@ class SteadyConfig:
     wrap grasp 1.2-1.5 N across d, away from the path at the door's +15 deg). Needs the
     robot's stiffness and tau (a robot that does not report tau gets its readings as they
     are); no dead band or gain of its own.
+    carry_removal: a reading taken while the hand is still moving carries part of the last
+    one across d (the grasp and the arm settle after each re-anchoring; fitted on the hook
+    hand's drawer suite, 0.32 of it). After the main correction that carried part keeps
+    pushing d the way the last reading did, past the path: on the hook hand's drawer suite
+    the next step turns d on by 2-6 deg the same way in 13 of 20 runs, and the overshoot
+    damping, which reacts to reversals only, then halves the gain for the way back
+    (docs/forces.md, stop 30). So from the first located reading on, a reading whose force
+    across d has the same sign as the last reading's loses lam times the last one's, never
+    past zero; lam = exp(-dt / tau) from the robot's tracking_time_constant. This is
+    lag_inversion made one-sided: nothing is amplified (no division by 1 - lam) and a reading
+    that reverses is passed as read, so where exp(-dt / tau) overstates the share (the Jaco,
+    a soft wrist: stop 27) the cost is a slower correction, not the inversion's overshoot.
+    Not on the first reading after the first move (the reading before it is at rest, and
+    carries no motion), nor together with lag_inversion, which undoes the carried share
+    already. Needs tau; no dead band or gain of its own.
     """
 
     confidence_ramp: bool = True
@@ -260,6 +275,7 @@ class SteadyConfig:
     reversals_once_located: bool = True
     lag_inversion: bool = False
     travel_scaling: bool = True
+    carry_removal: bool = True
     overshoot_factor: float = OVERSHOOT_FACTOR
     recovery_factor: float = RECOVERY_FACTOR
     min_gain: float = MIN_TURN_GAIN
@@ -341,8 +357,9 @@ class SteadyDirection(_Base):
         # behind wait_for_location, reversals_once_located and the play compensation)
         locates = across is not None and abs(across[0]) > inp.threshold
         # what the inner controller is asked: the reading with the arm's lag undone across d
-        # (SteadyConfig.lag_inversion), from the first located reading on
-        asked = self._lag_inverted(inp, across, self._located or locates)
+        # (SteadyConfig.lag_inversion), or its carried part removed (carry_removal), from the
+        # first located reading on
+        asked = self._lag_undone(inp, across, self._located or locates)
         self._readings += 1
         # (not with lag_inversion, which already undoes the lag on this reading)
         scale = cfg.travel_scaling and not cfg.lag_inversion and self._readings == 2
@@ -417,22 +434,33 @@ class SteadyDirection(_Base):
             return False
         return self._rotation is None or self._rotation.magnitude() < 1e-12
 
-    def _lag_inverted(
+    def _lag_undone(
         self, inp: ControlInput, across: tuple[float, FloatArray] | None, located: bool
     ) -> ControlInput:
-        """The reading with the arm's first-order lag undone across d
-        (SteadyConfig.lag_inversion) once the path is located, else the reading as it is.
+        """The reading with the arm's first-order lag undone across d once the path is
+        located: inverted (SteadyConfig.lag_inversion), or its carried part removed from a
+        reading that keeps the last one's sign (carry_removal); else the reading as it is.
         Remembers the raw reading for the next step. across: this reading's `_across`."""
+        cfg = self.config
         force = np.asarray(inp.force, dtype=float)
         previous, self._previous_force = self._previous_force, force.copy()
-        tau = inp.tracking_time_constant
-        if not (self.config.lag_inversion and located and across is not None):
+        if not ((cfg.lag_inversion or cfg.carry_removal) and located and across is not None):
             return inp
+        tau = inp.tracking_time_constant
         if previous is None or tau is None or not (math.isfinite(tau) and tau > 0):
+            return inp
+        if not (math.isfinite(inp.dt) and inp.dt > 0):
             return inp
         lam = math.exp(-inp.dt / tau)  # the share of the last reading a reading still carries
         across_force, across_dir = across
-        restored = (across_force - lam * float(previous @ across_dir)) / (1.0 - lam)
+        last = float(previous @ across_dir)
+        if cfg.lag_inversion:
+            restored = (across_force - lam * last) / (1.0 - lam)
+        else:
+            # the last reading was taken at rest (before the first move): nothing carried
+            if self._readings < 2 or across_force * last <= 0:
+                return inp  # ... or this one reverses it: as read (never amplified)
+            restored = math.copysign(max(0.0, abs(across_force) - lam * abs(last)), across_force)
         return replace(inp, force=force + (restored - across_force) * across_dir)
 
     def _play_input(
