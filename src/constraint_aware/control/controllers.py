@@ -249,21 +249,21 @@ class SteadyConfig:
     wrap grasp 1.2-1.5 N across d, away from the path at the door's +15 deg). Needs the
     robot's stiffness and tau (a robot that does not report tau gets its readings as they
     are); no dead band or gain of its own.
-    carry_removal: a reading taken while the hand is still moving carries part of the last
-    one across d (the grasp and the arm settle after each re-anchoring; fitted on the hook
-    hand's drawer suite, 0.32 of it). After the main correction that carried part keeps
-    pushing d the way the last reading did, past the path: on the hook hand's drawer suite
-    the next step turns d on the same way by 2.1-8.4 deg in 13 of 20 runs (16 of 20 end it
-    on the path's far side), and the overshoot damping, which reacts to reversals only, then
-    halves the gain for the way back (docs/forces.md, stop 30). So from the first located reading on, a reading whose force
-    across d has the same sign as the last reading's loses lam times the last one's, never
-    past zero; lam = exp(-dt / tau) from the robot's tracking_time_constant. This is
-    lag_inversion made one-sided: nothing is amplified (no division by 1 - lam) and a reading
-    that reverses is passed as read, so where exp(-dt / tau) overstates the share (the Jaco,
-    a soft wrist: stop 27) the cost is a slower correction, not the inversion's overshoot.
-    Not on the first reading after the first move (the reading before it is at rest, and
-    carries no motion), nor together with lag_inversion, which undoes the carried share
-    already. Needs tau; no dead band or gain of its own.
+    carry_removal: a reading taken while the hand is still moving carries part of the last one
+    across d (the grasp and the arm settle after each re-anchoring; fitted on the hook hand's
+    drawer suite, 0.32 of it). After the main correction that carried part keeps pushing d the
+    way the last reading did, past the path: on the hook hand's drawer suite the next step turns
+    d on the same way by 2.1-8.4 deg in 13 of 20 runs (16 of 20 end it on the path's far side),
+    and the overshoot damping, which reacts to reversals only, then halves the gain for the way
+    back (docs/forces.md, stop 30). So from the first located reading on, a reading whose force
+    across d has the same sign as the last reading's loses lam times the last one's, never past
+    zero; lam = exp(-dt / tau) from the robot's tracking_time_constant. This is lag_inversion
+    made one-sided: nothing is amplified (no division by 1 - lam) and a reading that reverses is
+    passed as read, so where exp(-dt / tau) overstates the share (the Jaco, a soft wrist: stop
+    27) the cost is a slower correction, not the inversion's overshoot. Not on the first reading
+    after the first move (the reading before it is at rest, and carries no motion), nor together
+    with lag_inversion, which undoes the carried share already. Needs tau; no dead band or gain
+    of its own.
     """
 
     confidence_ramp: bool = True
@@ -300,11 +300,12 @@ class SteadyDirection(_Base):
     controller, whose hand turns at the known w = v / r, has 3.6 N. On the drawer the same
     kicks, one step and its reversal, double the mean |F|.
 
-    Each step: the inner controller proposes d' (3,) (on the reading after the first move,
-    with its force across d scaled from the hand's travel to the move:
-    SteadyConfig.travel_scaling); the turn d -> d' (a rotation vector,
-    any axis) is scaled by the confidence ramp and the overshoot gain (which tracks the
-    proposals once a reading has located the path), plus the feed-forward
+    Each step: the inner controller proposes d' (3,) (on the reading after the first move, with
+    its force across d scaled from the hand's travel to the move: SteadyConfig.travel_scaling;
+    on later readings, once one has located the path, with the part of the last reading they
+    still carry removed: SteadyConfig.carry_removal); the turn d -> d' (a rotation vector, any
+    axis) is scaled by the confidence ramp and the overshoot gain (which tracks the proposals
+    once a reading has located the path), plus the feed-forward
     turn about the workplane normal when the rotation rate is known and a reading has located
     the path (SteadyConfig.wait_for_location); d_{t+1} is d turned by
     it. The hand rotation (revolute, asked by the executor) is the known rate's, or the
