@@ -335,13 +335,14 @@ class SteadyDirection(_Base):
         self.gain = 1.0
         self._last_turn = np.zeros(3)  # the last non-zero proposed turn (rotation vector)
         self._smoothed = np.zeros(3)  # [rad] exponential average of the applied turns
-        self._moved = False
         self._rotation: Rotation | None = None
         self._play_used = False  # the play has been compensated in this run
         self._located = False  # a reading has carried a force across d above the dead band
         self._pending_extra: FloatArray | None = None  # last step's applied play turn
         self._previous_force: FloatArray | None = None  # [N] (3,) the last raw reading
-        self._readings = 0  # readings seen in this run (the first is at rest, before a move)
+        # readings seen in this run, this one included: the first is at rest, before any
+        # move; from the second on the hand has moved
+        self._readings = 0
 
     def step_length(self, nominal: float) -> float:
         return self.inner.step_length(nominal)
@@ -351,6 +352,7 @@ class SteadyDirection(_Base):
 
     def next_direction(self, inp: ControlInput) -> FloatArray:
         cfg = self.config
+        self._readings += 1
         d = np.asarray(inp.direction, dtype=float)
         extra = None  # the play compensation's part of this step's proposed turn
         across = _across(inp)  # (force [N], direction (3,)) across d, or None
@@ -361,7 +363,6 @@ class SteadyDirection(_Base):
         # (SteadyConfig.lag_inversion), or its carried part removed (carry_removal), from the
         # first located reading on
         asked = self._lag_undone(inp, across, self._located or locates)
-        self._readings += 1
         # (not with lag_inversion, which already undoes the lag on this reading)
         scale = cfg.travel_scaling and not cfg.lag_inversion and self._readings == 2
         if scale and locates and self._translated(inp):
@@ -417,9 +418,8 @@ class SteadyDirection(_Base):
             per_step = self.rotation_rate * inp.dt * np.asarray(normal, dtype=float)
             # the path turns between consecutive moves (not before the first); d follows it
             # once a reading has located the path (SteadyConfig.wait_for_location)
-            if self._moved and (self._located or not cfg.wait_for_location):
+            if self._readings > 1 and (self._located or not cfg.wait_for_location):
                 turn = turn + per_step
-        self._moved = True
         self._smoothed = self._smoothed + cfg.hand_smoothing * (turn - self._smoothed)
         if inp.fixed_orientation:
             self._rotation = None
@@ -459,7 +459,7 @@ class SteadyDirection(_Base):
             restored = (across_force - lam * last) / (1.0 - lam)
         else:
             # the last reading was taken at rest (before the first move): nothing carried
-            if self._readings < 2 or across_force * last <= 0:
+            if self._readings <= 2 or across_force * last <= 0:
                 return inp  # ... or this one reverses it: as read (never amplified)
             restored = math.copysign(max(0.0, abs(across_force) - lam * abs(last)), across_force)
         return replace(inp, force=force + (restored - across_force) * across_dir)
