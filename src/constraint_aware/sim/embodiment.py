@@ -14,27 +14,27 @@ import numpy as np
 
 from constraint_aware.errors import InvalidInputError, UnknownNameError
 from constraint_aware.geometry import FloatArray
-from constraint_aware.sim.monitor import GroundTruthMonitor
-from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, SimulatedRobot, period_substeps
+from constraint_aware.sim.base import Embodiment
+from constraint_aware.sim.jaco import JacoSim, OscConfig
+from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, period_substeps
 from constraint_aware.sim.tasks import TaskConfig
+from constraint_aware.sim.world import ManipulationSim
+
+__all__ = [
+    "DEFAULT_ROBOT",
+    "EMBODIMENTS",
+    "ROBOT_PARAMS",
+    "Embodiment",
+    "RobotSpec",
+    "make_embodiment",
+    "parse_robot",
+]
 
 DEFAULT_ROBOT = "hook-hand"
 ROBOT_PARAMS = {
     "stiffness": (100.0, 1e5),  # [N/m] translational Cartesian stiffness of the arm
     "period": (0.02, 0.5),  # [s] control period
 }
-
-
-class Embodiment(GroundTruthMonitor, SimulatedRobot):
-    """What every embodiment is: the Robot adapter and the ground-truth monitor on one model."""
-
-    def reset(self) -> None:
-        """Grasp the handle and settle (sim/grasp.py): F_d may be read after."""
-        from constraint_aware.sim.grasp import grasp
-
-        grasp(self)
-        # the tracking time constant at the grasp configuration, fixed for the episode
-        self._tracking_time_constant = self._free_space_time_constant()
 
 
 @dataclass(frozen=True)
@@ -47,16 +47,12 @@ class RobotSpec:
 
 
 def _hook_hand(task: TaskConfig, spec: RobotSpec) -> Embodiment:
-    from constraint_aware.sim.world import ManipulationSim
-
     if spec.stiffness is not None:
         task = task.with_overrides(hand__translational_stiffness=spec.stiffness)
     return ManipulationSim(task, control_period=spec.period or CONTROL_PERIOD)
 
 
 def _jaco(task: TaskConfig, spec: RobotSpec) -> Embodiment:
-    from constraint_aware.sim.jaco import JacoSim, OscConfig
-
     osc = OscConfig()
     if spec.stiffness is not None:
         # translational only, as the hook hand's `hand__translational_stiffness`: the wrist's
