@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
@@ -61,9 +62,16 @@ def suite_specs(
     return specs
 
 
+@functools.cache
+def _default_policy() -> ConstraintAwarePolicy:
+    """The shipped default policy, loaded once per process: every run of a sweep uses it
+    (runs only read a policy: each controller keeps its own session)."""
+    return ConstraintAwarePolicy.load()
+
+
 def _run_one(args: tuple[RunSpec, bool, ConstraintAwarePolicy | None]) -> dict[str, Any]:
     spec, keep_steps, policy = args
-    record, _ = run(spec, policy=policy)
+    record, _ = run(spec, policy=policy or _default_policy())
     out: dict[str, Any] = {"spec": dataclasses.asdict(spec), "summary": record.summary()}
     if keep_steps:
         out["angles_deg"] = record.angles
