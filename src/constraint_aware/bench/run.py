@@ -23,6 +23,7 @@ from constraint_aware.bench.sweep import (
     SUITE_OFFSET_RANGE,
     available_cpus,
     dask_executor,
+    local_pool,
     use_executor,
 )
 from constraint_aware.errors import CapError
@@ -162,8 +163,9 @@ def run_bench(
     loaded = ConstraintAwarePolicy.load(policy)
     cfg = ex.BenchConfig.for_mode(quick, workers, robot)
     check_out_dir(Path(out), force)
-    if scheduler is None:
-        return _run_bench(out, cfg, loaded, policy)
+    if scheduler is None:  # one pool for every section: its workers keep their caches
+        with local_pool(workers) as pool, use_executor(pool):
+            return _run_bench(out, cfg, loaded, policy)
     with (
         dask_executor(scheduler, local_workers=workers) as (executor, threads),
         use_executor(executor),
