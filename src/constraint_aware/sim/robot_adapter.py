@@ -42,8 +42,7 @@ def rotation_matrix(rotvec: FloatArray) -> FloatArray:
 
 
 def rotation_matrices(rotvecs: FloatArray) -> FloatArray:
-    """(k, 3, 3) the rotations of k rotation vectors (k, 3) [rad] (Rodrigues, all at once:
-    the interpolator's pieces of a period)."""
+    """(k, 3, 3) the rotations of k rotation vectors (k, 3) [rad] (Rodrigues, all at once)."""
     angles = np.sqrt(np.einsum("ki,ki->k", rotvecs, rotvecs))
     out = np.empty((len(rotvecs), 3, 3))
     out[:] = np.eye(3)
@@ -274,6 +273,8 @@ class SimulatedRobot(ABC):
         self._filtered = np.zeros(6)
         self._touched = False
         self._next_pose: Pose | None = None
+        self._last_rotation: Rotation | None = None
+        self._last_matrix = np.eye(3)
 
     # --- what an embodiment provides -------------------------------------------------------
     @abstractmethod
@@ -367,16 +368,24 @@ class SimulatedRobot(ABC):
         position, rotation = self._setpoint()
         return Pose(position.copy(), rotation_from_matrix(rotation))
 
-    def _follow(self, positions: FloatArray, rotations: FloatArray, substeps: np.ndarray) -> None:
-        """Run one period's pieces: piece i holds the setpoint (positions (k, 3) [m], rotations
-        (k, 3, 3)) for substeps[i] substeps; the setpoint velocity drops to zero for the last
-        piece (it rests at the goal). Override to hand the controller every piece at once."""
-        last = len(substeps) - 1
-        for i, n in enumerate(substeps):
+    def _ramp(
+        self, start: FloatArray, shift: FloatArray, start_rotation: FloatArray, turn: FloatArray
+    ) -> None:
+        """Run one period's setpoint ramp: piece i (of `RAMP_CHUNKS`) holds the setpoint
+        start + f_i shift, rotated by f_i turn from start_rotation (f_i = `RAMP_FRACTIONS`[i];
+        start, shift (3,) [m], start_rotation (3, 3), turn (3,) [rad] a world-frame rotation
+        vector) for `_piece_steps`[i] substeps; the setpoint velocity drops to zero for the
+        last piece (it rests at the goal). Override to hand the controller every piece at
+        once."""
+        fractions = RAMP_FRACTIONS[:, None]
+        positions = start + fractions * shift
+        rotations = rotation_matrices(fractions * turn) @ start_rotation
+        last = RAMP_CHUNKS - 1
+        for i, n in enumerate(self._piece_steps.tolist()):
             if i == last:
                 self._set_setpoint_velocity(np.zeros(6))
             self._apply_setpoint_matrix(positions[i], rotations[i])
-            self._step(int(n))
+            self._step(n)
 
     def _step(self, n: int) -> None:
         """Advance the physics `n` substeps (override to run a control law per substep)."""
@@ -496,13 +505,17 @@ class SimulatedRobot(ABC):
             shift, turn = np.zeros(3), np.zeros(3)
         else:
             shift = np.asarray(goal.position, dtype=float) - start
-            turn = rotvec(goal.orientation.as_matrix() @ start_rotation.T)  # world frame
+            # slerp: about the one axis of the world-frame turn from the start to the goal
+            turn = rotvec(self._rotation_matrix(goal.orientation) @ start_rotation.T)
         steps = self._period_steps
         self._set_setpoint_velocity(np.concatenate([shift, turn]) / (steps * TIMESTEP))
-        fractions = RAMP_FRACTIONS[:, None]
-        positions = start + fractions * shift
-        # slerp: the turn's rotation vector scaled, applied to the start
-        rotations = rotation_matrices(fractions * turn) @ start_rotation
-        self._follow(positions, rotations, self._piece_steps)
+        self._ramp(start, shift, start_rotation, turn)
         self._read_filter()
         self._next_pose = None
+
+    def _rotation_matrix(self, rotation: Rotation) -> FloatArray:
+        """(3, 3) of a commanded orientation; the last one's is kept, since a command that
+        does not turn the hand hands the same (immutable) Rotation back period after period."""
+        if rotation is not self._last_rotation:
+            self._last_rotation, self._last_matrix = rotation, rotation.as_matrix()
+        return self._last_matrix

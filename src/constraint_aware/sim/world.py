@@ -39,6 +39,7 @@ from constraint_aware.sim.robot_adapter import (
     CONTROL_PERIOD,
     FILTER_STEPS,
     RAMP_CHUNKS,
+    RAMP_FRACTIONS,
     SETTLE_TIME,
     TIMESTEP,
     add_wrench_filter,
@@ -130,12 +131,16 @@ class ManipulationSim(Embodiment):
         self._mount_matrix = self._mount.as_matrix()
         self._tcp_local = np.array([0.0, 0.0, task.hand.tcp_depth])
         self._target = np.zeros(6)
+        # `_ramp`'s work arrays: the I, K, K^2 terms and the [1, sin, 1 - cos] coefficients
+        self._ramp_terms = np.zeros((3, 8))
+        self._ramp_coefficients = np.ones((RAMP_CHUNKS, 3))
 
     # --- pose <-> arm joints --------------------------------------------------------------
     def _joint_targets(self, positions: FloatArray, rotations: FloatArray) -> FloatArray:
         """(k, 6) arm joint targets (wrist x, y, z [m]; yaw, pitch, roll [rad] of the hand
         relative to its mount, intrinsic ZYX, each in (-pi, pi]) for k TCP poses: positions
-        (k, 3) [m], rotation matrices (k, 3, 3)."""
+        (k, 3) [m], rotation matrices (k, 3, 3). (`_ramp` computes the same for a period's
+        pieces.)"""
         wrist = positions - rotations @ self._tcp_local
         rel = rotations @ self._mount_matrix.T
         yaw = np.arctan2(rel[:, 1, 0], rel[:, 0, 0])
@@ -145,11 +150,13 @@ class ManipulationSim(Embodiment):
 
     def _unwrapped(self, q: FloatArray) -> FloatArray:
         """Joint targets (k, 6) in sequence after the current ones, angles unwrapped (no 2 pi
-        spins between consecutive targets)."""
-        q = q.copy()
-        angles = np.vstack([self._target[3:], q[:, 3:]])
-        turns = (np.diff(angles, axis=0) + np.pi) % (2 * np.pi) - np.pi
-        q[:, 3:] = self._target[3:] + np.cumsum(turns, axis=0)
+        spins between consecutive targets); `q` is changed in place and returned."""
+        angles = q[:, 3:]
+        turns = np.empty_like(angles)
+        turns[0] = angles[0] - self._target[3:]
+        np.subtract(angles[1:], angles[:-1], out=turns[1:])
+        turns = (turns + np.pi) % (2 * np.pi) - np.pi
+        angles[:] = self._target[3:] + turns.cumsum(axis=0)
         return q
 
     def _set_arm_ctrl(self, q: FloatArray) -> None:
@@ -159,12 +166,41 @@ class ManipulationSim(Embodiment):
         self._target = self._unwrapped(self._joint_targets(position[None], rotation[None]))[0]
         self._set_arm_ctrl(self._target)
 
-    def _follow(self, positions: FloatArray, rotations: FloatArray, substeps: np.ndarray) -> None:
-        """The period's pieces as joint targets, all at once; one `mj_step` call per piece."""
-        targets = self._unwrapped(self._joint_targets(positions, rotations))
+    def _ramp(
+        self, start: FloatArray, shift: FloatArray, start_rotation: FloatArray, turn: FloatArray
+    ) -> None:
+        """The period's pieces as joint targets, all at once; one `mj_step` call per piece.
+
+        Piece i's rotation is exp(f_i turn) R0 = (I + sin(f_i a) K + (1 - cos(f_i a)) K^2) R0
+        (Rodrigues; a = |turn|, K the cross-product matrix of its axis): the entries the joint
+        targets read (five of R M^T for the angles, M the mount, and R t for the wrist, t the
+        tool point on the hand) are one product [1, sin, 1 - cos] (pieces, 3) by their I, K,
+        K^2 terms (3, 8)."""
+        angle = math.sqrt(float(turn @ turn))
+        relative = start_rotation @ self._mount_matrix.T
+        tool = start_rotation @ self._tcp_local
+        terms = self._ramp_terms
+        terms[0, :5], terms[0, 5:] = relative[_EULER_ENTRIES], tool
+        coefficients = self._ramp_coefficients
+        if angle > 1e-12:
+            k = _cross_matrix(turn / angle)
+            k_relative, k_tool = k @ relative, k @ tool
+            terms[1, :5], terms[1, 5:] = k_relative[_EULER_ENTRIES], k_tool
+            terms[2, :5], terms[2, 5:] = (k @ k_relative)[_EULER_ENTRIES], k @ k_tool
+            coefficients[:, 1] = np.sin(RAMP_FRACTIONS * angle)
+            coefficients[:, 2] = 1.0 - np.cos(RAMP_FRACTIONS * angle)
+        else:
+            coefficients[:, 1:] = 0.0
+        e = coefficients @ terms  # per piece: r10, r00, r20, r21, r22 of R M^T, then R t
+        q = np.empty((RAMP_CHUNKS, 6))
+        q[:, :3] = start + RAMP_FRACTIONS[:, None] * shift - e[:, 5:]
+        q[:, 3] = np.arctan2(e[:, 0], e[:, 1])
+        q[:, 4] = np.arctan2(-e[:, 2], np.hypot(e[:, 1], e[:, 0]))
+        q[:, 5] = np.arctan2(e[:, 3], e[:, 4])
+        targets = self._unwrapped(q)
         ctrl, arm = self.data.ctrl, self._arm_ctrl
-        for q, n in zip(targets, substeps.tolist(), strict=True):
-            ctrl[arm] = q
+        for target, n in zip(targets, self._piece_steps.tolist(), strict=True):
+            ctrl[arm] = target
             self._step(n)
         self._target = targets[-1]
 
@@ -204,6 +240,16 @@ class ManipulationSim(Embodiment):
         self._target = q
         d.qpos[self._finger_qpos] = [self.task.finger_angle, -self.task.finger_angle]
         d.ctrl[self._finger_act] = [self.task.finger_angle, -self.task.finger_angle]
+
+
+#: The entries of R M^T the joint angles read: r10, r00 (yaw), r20 (pitch), r21, r22 (roll)
+_EULER_ENTRIES = (np.array([1, 0, 2, 2, 2]), np.array([0, 0, 0, 1, 2]))
+
+
+def _cross_matrix(v: FloatArray) -> FloatArray:
+    """(3, 3) K with K u = v x u."""
+    x, y, z = v.tolist()
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def _zyx_matrix(yaw: float, pitch: float, roll: float) -> FloatArray:
