@@ -12,7 +12,7 @@ import math
 import mujoco
 import numpy as np
 
-from constraint_aware.geometry import FloatArray, unit
+from constraint_aware.geometry import FloatArray
 from constraint_aware.sim.objects import HANDLE_SITE, OBJECT_GEOM_PREFIX, OBJECT_JOINT
 from constraint_aware.sim.robot_adapter import cross, rotvec
 from constraint_aware.sim.tasks import TaskConfig
@@ -59,11 +59,11 @@ class GroundTruthMonitor:
 
     def admissible_direction(self) -> FloatArray:
         d = self.data
-        axis = d.xaxis[self._obj_joint].copy()
+        axis = d.xaxis[self._obj_joint]
         if self.task.object.joint_type == "prismatic":
-            return unit(axis)
+            return _unit(axis)
         radial = d.site_xpos[self._tcp_site] - d.xanchor[self._obj_joint]
-        return unit(cross(axis, radial - (radial @ axis) * axis))
+        return _unit(cross(axis, radial - (radial @ axis) * axis))
 
     def handle_position(self) -> FloatArray:
         return self.data.site_xpos[self._handle_site].copy()
@@ -101,3 +101,9 @@ class GroundTruthMonitor:
         if limit is not None and ang > limit:
             return f"grasp lost: hand turned {ang:.0f} deg relative to the handle"
         return None
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    """v (3,) normalized, a new array (geometry.unit's rule: the zero vector below 1e-12)."""
+    norm = math.sqrt(float(v @ v))
+    return v / norm if norm > 1e-12 else np.zeros(3)
