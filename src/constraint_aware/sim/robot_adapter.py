@@ -3,14 +3,17 @@
 `SimulatedRobot` owns what does not depend on the arm: the control period, the wrist sensor's
 filter and sign convention, the Cartesian interpolation of each period's setpoint, and the
 `read_*`/`command_*`/`advance` methods. An embodiment says only how a TCP pose setpoint reaches
-its controller (`_apply_setpoint_matrix`, or all of a period's pieces at once: `_follow`), how
-the physics advances (`_step`: plain `mj_step` for servo-driven joints, a control law every few
-substeps for a torque-controlled arm), and how the grasp is placed (`_place`, see sim/grasp.py).
+its controller (`_apply_setpoint_matrix`, or a period's pieces all at once: `_ramp`), where
+the setpoint is (`_setpoint`), how the physics advances (`_step`: plain `mj_step` for
+servo-driven joints, a control law every few substeps for a torque-controlled arm), and how the
+grasp is placed (`_place`, see sim/grasp.py).
 
-The wrist sensor's filter is computed from MuJoCo's own sensor history: the model carries the
-force and torque sensors and the frames and contacts the filter needs as sensors that keep
-their last `FILTER_STEPS` samples (`add_wrench_filter`), so a period is a few `mj_step` calls
-and one read of that history, with no Python between the substeps.
+The wrist sensor's filter is read from MuJoCo's own sensor history: the model carries, at the
+tool point, force and torque sensors, the tool frame and the hand-object contacts as sensors
+that keep their last `FILTER_STEPS` samples (`add_wrench_filter`), so a period is a few
+`mj_step` calls and one read of that history, with no Python between the substeps. Rotations
+are numpy matrices throughout; scipy's Rotation appears only where the `Robot` protocol's
+`Pose` needs one.
 """
 
 from __future__ import annotations
