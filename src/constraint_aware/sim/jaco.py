@@ -364,7 +364,7 @@ class JacoSim(Embodiment):
         """The compiled OSC law (sim/osc.py) and its fixed arguments: indices, gains, the
         per-joint parameters."""
         try:
-            from constraint_aware.sim import osc as law
+            import constraint_aware.sim.osc as law
         except ImportError as exc:  # numba, in the `arm` extra
             raise CapError(
                 f"the Jaco embodiment needs {exc.name}: pip install 'constraint-aware[arm]'"
