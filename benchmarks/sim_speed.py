@@ -8,9 +8,10 @@ machine may be shared: compare ratios from one run, never a lone absolute time; 
 load average before and after is recorded):
 
 - `overhead`: the paper's conditions (bench/sweep.py `PAPER_OFFSETS`: the five tasks, the
-  drawer at both signs) with controller "policy", each a whole `control.simulate.run` (model
-  build, grasp, episode); the wall time of the run over the wall time spent inside MuJoCo's
-  `mj_step` and `mj_forward` during it (timed around each call). 1.0 would be MuJoCo's own
+  drawer at both signs) with controller "policy" (the default policy, loaded once, as a
+  sweep's worker does), each a whole `control.simulate.run` (model build, grasp, episode); the
+  wall time of the run over the wall time spent inside MuJoCo's `mj_step` and `mj_forward`
+  during it (timed around each call). 1.0 would be MuJoCo's own
   speed; the rest is Python: the simulated robot, the executor, the controller. Per task the
   median over its conditions and repeats, per embodiment the median over the five tasks.
 - `realtime`: one 30-control-step episode per task from 10 deg off, success and the force
@@ -43,6 +44,7 @@ from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import PAPER_OFFSETS
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.envs import task_env_id
+from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
 from constraint_aware.sim.tasks import TASKS
 
@@ -83,16 +85,17 @@ class MujocoClock:
 
 def overhead(robot: str, repeats: int) -> dict[str, Any]:
     """Whole runs of the paper's conditions: wall time over MuJoCo's time (module docstring)."""
+    policy = ConstraintAwarePolicy.load()
     per_task: dict[str, Any] = {}
     for task, offsets in PAPER_OFFSETS.items():
         ratios, walls = [], []
         for offset in offsets:
             spec = RunSpec(task=task, controller="policy", offset_deg=offset, robot=robot)
-            run(spec)  # warm: this process's caches (policy, models, the arm's grasp)
+            run(spec, policy=policy)  # warm: this process's caches (models, the arm's grasp)
             for _ in range(repeats):
                 with MujocoClock() as clock:
                     start = time.perf_counter()
-                    record, _ = run(spec)
+                    record, _ = run(spec, policy=policy)
                     wall = time.perf_counter() - start
                 ratios.append(wall / clock.seconds)
                 walls.append(wall)
