@@ -18,7 +18,8 @@ load average before and after is recorded):
   limit out of reach so that every episode runs all 30 steps, the executor's two quasi-static
   guards (the start-of-run self-check and the arm-deflection stop) off so the lagging arm is
   not stopped; the 30 control periods' robot time (3 s) over the episode's CPU time of this
-  process (one core; grasp and model build included): the control real-time factor.
+  process (one core; grasp and model build included, the policy loaded once): the control
+  real-time factor.
 - `env`: the Gymnasium task env (envs/task.py: `constraint_aware/<Task>-v0`), one episode per
   task and repeat, the action keeping the current direction: env steps per second of wall
   time, over `step` calls only and over whole episodes (`reset` included).
@@ -112,12 +113,12 @@ def overhead(robot: str, repeats: int) -> dict[str, Any]:
     }
 
 
-def episode(task: str, robot: str) -> dict[str, float]:
+def episode(task: str, robot: str, policy: ConstraintAwarePolicy) -> dict[str, float]:
     """One 30-step episode: its CPU and wall time [s] and its simulated time [s]."""
     overrides = (("max_steps", STEPS), ("success_progress", 1e9), ("force_limit", 1e9))
     spec = RunSpec(task=task, offset_deg=10.0, overrides=overrides, robot=robot)
     wall, cpu = time.perf_counter(), time.process_time()
-    record, sim = run(spec, executor_overrides=QUASI_STATIC_GUARDS_OFF)
+    record, sim = run(spec, policy=policy, executor_overrides=QUASI_STATIC_GUARDS_OFF)
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
     moves = len(record.steps) - 1  # the first record is the hold before the first move
     if moves < STEPS:
@@ -127,13 +128,14 @@ def episode(task: str, robot: str) -> dict[str, float]:
 
 def realtime(robot: str, repeats: int) -> dict[str, Any]:
     """The control real-time factor on one core (module docstring)."""
+    policy = ConstraintAwarePolicy.load()
     guard = executor_module.ARM_FORCE_DISAGREEMENT_STEPS
     executor_module.ARM_FORCE_DISAGREEMENT_STEPS = math.inf
     try:
         per_task: dict[str, dict[str, float]] = {}
         for task in TASKS:
-            episode(task, robot)  # warm: model compile caches, IK and tracking-time caches
-            runs = [episode(task, robot) for _ in range(repeats)]
+            episode(task, robot, policy)  # warm: model compile, IK and tracking-time caches
+            runs = [episode(task, robot, policy) for _ in range(repeats)]
             cpu = statistics.median(r["cpu_s"] for r in runs)
             simulated = statistics.median(r["simulated_s"] for r in runs)
             per_task[task] = {
