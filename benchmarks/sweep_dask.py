@@ -3,14 +3,19 @@
     python benchmarks/sweep_dask.py [--workers 1,2] [--local]
         [--out benchmarks/results/sweep_dask.json]
 
-Runs `run_bench(quick=True, scheduler="local", workers=n)` for each n in `--workers` (a
-`distributed.LocalCluster` of n single-threaded worker processes, started by the bench), one
-after the other into temporary directories, and with `--local` the same on the local process
-pool (`workers=n`, no scheduler). Reports each bench's wall time (the bench's own, from
-results.json, and the whole call's, cluster start included), the speedup of every run over
-the first Dask one (the same machine, one after the other: the load average is recorded), and
-whether every results.json is the first one's except for the wall time and the worker count
-(text of the canonical JSON, so NaN compares equal to NaN; where not, the differing paths).
+For each n in `--workers`: a `distributed.LocalCluster` of n single-threaded worker
+processes (as `cap bench --scheduler local --workers n` starts) and `run_bench(quick=True,
+scheduler=<its address>)`, one after the other, each bench in a fresh Python process (as a
+`cap bench` run is), into temporary directories; with `--local` the same on the local process
+pool (`workers=n`, no scheduler). Reports each bench's wall time
+(from results.json), the CPU time of this process and of each Dask worker during the bench,
+the speedup of every run over the first one measured two ways: by wall time (the same
+machine, one after the other: the load average is recorded, and on a loaded machine the
+share of the CPUs, not their number, sets it) and by the CPU critical path (this process's CPU
+time plus the busiest worker's: the wall time on otherwise idle cores, each worker on its
+own); and whether every results.json is the first one's except for the wall time and the
+worker count (text of the canonical JSON, so NaN compares equal to NaN; where not, the
+differing paths).
 """
 
 from __future__ import annotations
@@ -18,14 +23,18 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
+from distributed import Client, LocalCluster
+
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.run import RESULTS, run_bench
-from constraint_aware.bench.sweep import LOCAL_SCHEDULER
 
 DEFAULT_OUT = Path(__file__).parent / "results" / "sweep_dask.json"
 
@@ -52,22 +61,38 @@ def differences(a: Any, b: Any, path: str = "") -> list[str]:
     return [] if same else [path]
 
 
-def one_bench(tmp: Path, workers: int, scheduler: str | None) -> dict[str, Any]:
-    """One quick bench; its results (canonical), wall times [s] and the load around it."""
-    name = f"{scheduler or 'pool'}-{workers}"
-    load = os.getloadavg()[0]
-    start = time.perf_counter()
-    run_bench(tmp / name, quick=True, workers=workers, scheduler=scheduler)
-    call = time.perf_counter() - start
-    results, wall = canonical_results(tmp / name)
-    return {
-        "name": name,
-        "results": results,
-        "bench_wall_time_s": wall,
-        "call_wall_time_s": call,
-        "load_average_1min_before": load,
-        "load_average_1min_after": os.getloadavg()[0],
-    }
+def one_bench(tmp: Path, workers: int, dask: bool) -> dict[str, Any]:
+    """One quick bench; its results (canonical), wall and CPU times [s], the load around it."""
+    name = f"{'dask' if dask else 'pool'}-{workers}"
+    entry: dict[str, Any] = {"name": name, "load_average_1min_before": os.getloadavg()[0]}
+    if dask:
+        with (
+            LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
+            ) as cluster,
+            Client(cluster) as client,
+        ):
+            client.wait_for_workers(workers)
+            before = client.run(time.process_time)
+            cpu = time.process_time()
+            run_bench(tmp / name, quick=True, scheduler=cluster.scheduler_address)
+            entry["main_cpu_s"] = time.process_time() - cpu
+            after = client.run(time.process_time)
+        entry["worker_cpu_s"] = sorted(after[w] - before[w] for w in after)
+    else:
+        cpu = time.process_time()
+        children = resource.getrusage(resource.RUSAGE_CHILDREN)
+        run_bench(tmp / name, quick=True, workers=workers)
+        entry["main_cpu_s"] = time.process_time() - cpu
+        done = resource.getrusage(resource.RUSAGE_CHILDREN)
+        entry["workers_total_cpu_s"] = (
+            done.ru_utime + done.ru_stime - children.ru_utime - children.ru_stime
+        )
+    entry["results"], entry["bench_wall_time_s"] = canonical_results(tmp / name)
+    entry["load_average_1min_after"] = os.getloadavg()[0]
+    if dask:
+        entry["cpu_critical_path_s"] = entry["main_cpu_s"] + max(entry["worker_cpu_s"])
+    return entry
 
 
 def main() -> None:
@@ -75,17 +100,24 @@ def main() -> None:
     parser.add_argument("--workers", default="1,2", help="worker counts, comma-separated")
     parser.add_argument("--local", action="store_true", help="also the local process pool")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    parser.add_argument("--single", help=argparse.SUPPRESS)  # the subprocess: "dask-2", ...
     args = parser.parse_args()
+    if args.single is not None:
+        kind, n = args.single.split("-")
+        entry = one_bench(args.out.parent, int(n), dask=kind == "dask")
+        args.out.write_text(json.dumps(entry))
+        return
     counts = [int(n) for n in args.workers.split(",")]
     if min(counts) < 1:
         parser.error("--workers: counts must be >= 1")
+    names = [f"dask-{n}" for n in counts] + ([f"pool-{n}" for n in counts] if args.local else [])
     runs = []
     with tempfile.TemporaryDirectory() as tmp:
-        for n in counts:
-            runs.append(one_bench(Path(tmp), n, LOCAL_SCHEDULER))
-        if args.local:
-            for n in counts:
-                runs.append(one_bench(Path(tmp), n, None))
+        for name in names:
+            out = Path(tmp) / f"{name}.json"
+            cmd = [sys.executable, __file__, "--single", name, "--out", str(out)]
+            subprocess.run(cmd, check=True)
+            runs.append(json.loads(out.read_text()))
     first = runs[0]
     table = first["results"]["headline"]["table"]
     result = {
@@ -96,6 +128,11 @@ def main() -> None:
             {
                 **{k: v for k, v in r.items() if k != "results"},
                 "speedup_over_first": first["bench_wall_time_s"] / r["bench_wall_time_s"],
+                "cpu_critical_path_speedup_over_first": (
+                    first["cpu_critical_path_s"] / r["cpu_critical_path_s"]
+                    if "cpu_critical_path_s" in r
+                    else None
+                ),
                 "differences_from_first": differences(first["results"], r["results"]),
             }
             for r in runs
