@@ -56,16 +56,19 @@ PARTS = ("overhead", "realtime", "env")
 
 
 class MujocoClock:
-    """Wall time [s] spent inside `mujoco.mj_step` and `mujoco.mj_forward`, timed around each
-    call while installed (every module calls them as `mujoco.mj_step(...)`)."""
+    """Wall time [s] spent inside `mujoco.mj_step` and `mujoco.mj_forward` (`seconds`) and
+    inside `Executor.step` (`executor_seconds`), timed around each call while installed (every
+    module calls them as `mujoco.mj_step(...)`)."""
 
     def __init__(self) -> None:
         self.seconds = 0.0
+        self.executor_seconds = 0.0
         self._step: Callable[..., None] = mujoco.mj_step
         self._forward: Callable[..., None] = mujoco.mj_forward
+        self._executor_step = executor_module.Executor.step
 
     def __enter__(self) -> MujocoClock:
-        step, forward = self._step, self._forward
+        step, forward, executor_step = self._step, self._forward, self._executor_step
 
         def timed_step(m: mujoco.MjModel, d: mujoco.MjData, nstep: int = 1) -> None:
             start = time.perf_counter()
@@ -77,11 +80,20 @@ class MujocoClock:
             forward(m, d)
             self.seconds += time.perf_counter() - start
 
+        def timed_executor_step(executor: Any, *args: Any) -> Any:
+            start = time.perf_counter()
+            try:
+                return executor_step(executor, *args)
+            finally:
+                self.executor_seconds += time.perf_counter() - start
+
         mujoco.mj_step, mujoco.mj_forward = timed_step, timed_forward
+        executor_module.Executor.step = timed_executor_step  # type: ignore[method-assign,assignment]
         return self
 
     def __exit__(self, *exc: object) -> None:
         mujoco.mj_step, mujoco.mj_forward = self._step, self._forward
+        executor_module.Executor.step = self._executor_step  # type: ignore[method-assign]
 
 
 def overhead(robot: str, repeats: int) -> dict[str, Any]:
@@ -89,7 +101,7 @@ def overhead(robot: str, repeats: int) -> dict[str, Any]:
     policy = ConstraintAwarePolicy.load()
     per_task: dict[str, Any] = {}
     for task, offsets in PAPER_OFFSETS.items():
-        ratios, walls = [], []
+        ratios, own, walls = [], [], []
         for offset in offsets:
             spec = RunSpec(task=task, controller="policy", offset_deg=offset, robot=robot)
             run(spec, policy=policy)  # warm: this process's caches (models, the arm's grasp)
@@ -99,17 +111,20 @@ def overhead(robot: str, repeats: int) -> dict[str, Any]:
                     record, _ = run(spec, policy=policy)
                     wall = time.perf_counter() - start
                 ratios.append(wall / clock.seconds)
+                own.append((wall - clock.executor_seconds) / clock.seconds)
                 walls.append(wall)
         per_task[task] = {
             "overhead_ratio_median": statistics.median(ratios),
+            "overhead_ratio_without_executor_step_median": statistics.median(own),
             "run_wall_s_median": statistics.median(walls),
             "outcome": record.outcome,
         }
     return {
         "per_task": per_task,
-        "overhead_ratio_median": statistics.median(
-            v["overhead_ratio_median"] for v in per_task.values()
-        ),
+        **{
+            key: statistics.median(v[key] for v in per_task.values())
+            for key in ("overhead_ratio_median", "overhead_ratio_without_executor_step_median")
+        },
     }
 
 
@@ -224,6 +239,9 @@ def main() -> None:
             robot,
             {
                 "overhead_ratio": entry.get("overhead", {}).get("overhead_ratio_median"),
+                "without_executor_step": entry.get("overhead", {}).get(
+                    "overhead_ratio_without_executor_step_median"
+                ),
                 "control_real_time_factor_cpu": entry.get("realtime", {}).get(
                     "control_real_time_factor_cpu_median"
                 ),
