@@ -23,11 +23,16 @@ load average before and after is recorded):
 - `env`: the Gymnasium task env (envs/task.py: `constraint_aware/<Task>-v0`), one episode per
   task and repeat, the action keeping the current direction: env steps per second of wall
   time, over `step` calls only and over whole episodes (`reset` included).
+- `build`: what a run spends before its grasp, per task, in CPU time of this process:
+  constructing the embodiment with the compiled-model cache emptied (the model compiled) and
+  with it filled (a sweep's runs of the same task configuration), and a new `MjData` on the
+  model.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import os
 import statistics
@@ -52,7 +57,7 @@ from constraint_aware.sim.tasks import TASKS
 STEPS = 30
 DEFAULT_OUT = Path(__file__).parent / "results" / "sim_speed.json"
 QUASI_STATIC_GUARDS_OFF: dict[str, object] = {"self_check_steps": 0}  # and the arm-force one
-PARTS = ("overhead", "realtime", "env")
+PARTS = ("overhead", "realtime", "env", "build")
 
 
 class MujocoClock:
@@ -201,10 +206,58 @@ def env_speed(robot: str, repeats: int) -> dict[str, Any]:
     }
 
 
+def build(robot: str, repeats: int) -> dict[str, Any]:
+    """Embodiment construction with and without the model cache, and MjData (docstring)."""
+    from constraint_aware.sim import jaco, world
+    from constraint_aware.sim.embodiment import make_embodiment
+    from constraint_aware.sim.tasks import task_config
+
+    caches = [
+        cache
+        for cache in (getattr(world, "build_model", None), getattr(jaco, "_compiled", None))
+        if hasattr(cache, "cache_clear")
+    ]
+
+    def seconds(fn: Callable[[], object]) -> float:
+        """Median CPU time [s] of one call."""
+        times = []
+        for _ in range(max(repeats, 3)):
+            start = time.process_time()
+            fn()
+            times.append(time.process_time() - start)
+        return statistics.median(times)
+
+    def cold(task: str) -> object:
+        for cache in caches:
+            cache.cache_clear()  # type: ignore[union-attr]
+        return make_embodiment(robot, task_config(task))
+
+    def warm(task: str) -> object:
+        return make_embodiment(robot, task_config(task))
+
+    per_task = {}
+    for task in TASKS:
+        model = make_embodiment(robot, task_config(task)).model  # warm everything else
+        per_task[task] = {
+            "construct_cold_cpu_ms": 1e3 * seconds(functools.partial(cold, task)),
+            "construct_warm_cpu_ms": 1e3 * seconds(functools.partial(warm, task)),
+            "mjdata_cpu_ms": 1e3 * seconds(functools.partial(mujoco.MjData, model)),
+        }
+    return {
+        "per_task": per_task,
+        "model_cache": bool(caches),
+        **{
+            key + "_median": statistics.median(v[key] for v in per_task.values())
+            for key in ("construct_cold_cpu_ms", "construct_warm_cpu_ms", "mjdata_cpu_ms")
+        },
+    }
+
+
 MEASURES: dict[str, Callable[[str, int], dict[str, Any]]] = {
     "overhead": overhead,
     "realtime": realtime,
     "env": env_speed,
+    "build": build,
 }
 
 
