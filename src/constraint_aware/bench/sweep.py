@@ -141,7 +141,7 @@ def dask_executor(
                 n_workers=local_workers or available_cpus(),
                 threads_per_worker=1,  # one MuJoCo run per process, as in the local pool
                 processes=True,
-                dashboard_address=":0",  # any free port: never collide with a running one
+                dashboard_address=None,  # no dashboard: its server costs CPU and a port
             )
             stack.enter_context(cluster)
             address = cluster.scheduler_address
