@@ -4,18 +4,17 @@
         [--out benchmarks/results/sweep_dask.json]
 
 For each n in `--workers`: a `distributed.LocalCluster` of n single-threaded worker
-processes (as `cap bench --scheduler local --workers n` starts) and `run_bench(quick=True,
-scheduler=<its address>)`, one after the other, each bench in a fresh Python process (as a
-`cap bench` run is), into temporary directories; with `--local` the same on the local process
-pool (`workers=n`, no scheduler). Reports each bench's wall time
-(from results.json), the CPU time of this process and of each Dask worker during the bench,
-the speedup of every run over the first one measured two ways: by wall time (the same
-machine, one after the other: the load average is recorded, and on a loaded machine the
-share of the CPUs, not their number, sets it) and by the CPU critical path (this process's CPU
-time plus the busiest worker's: the wall time on otherwise idle cores, each worker on its
-own); and whether every results.json is the first one's except for the wall time and the
-worker count (text of the canonical JSON, so NaN compares equal to NaN; where not, the
-differing paths).
+processes without a dashboard (as `cap bench --scheduler local --workers n` starts) and
+`run_bench(quick=True, scheduler=<its address>)`, one after the other, each bench in a fresh
+Python process (as a `cap bench` run is), into temporary directories; with `--local` the same
+on the local process pool (`workers=n`, no scheduler). Reports each bench's wall time (from
+results.json), the CPU time of this process and of each Dask worker during the bench, the
+speedup of every run over the first one measured two ways: by wall time (the same machine, one
+after the other: the load average is recorded, and on a loaded machine the share of the CPUs,
+not their number, sets it) and by the CPU critical path (this process's CPU time plus the
+busiest worker's: the wall time on otherwise idle cores, each worker on its own); and whether
+every results.json is the first one's except for the wall times and the worker count (text of
+the canonical JSON, so NaN compares equal to NaN; where not, the differing paths).
 """
 
 from __future__ import annotations
@@ -40,10 +39,22 @@ DEFAULT_OUT = Path(__file__).parent / "results" / "sweep_dask.json"
 
 
 def canonical_results(out_dir: Path) -> tuple[dict[str, Any], float]:
-    """results.json without its wall time and worker count, and that wall time [s]."""
+    """results.json without its wall times (the bench's and its sections') and worker count,
+    and the bench's wall time [s]."""
     results = json.loads((out_dir / RESULTS).read_text())
     wall = float(results["meta"].pop("wall_time_s"))
     results["meta"].pop("workers")
+
+    def drop_wall_times(node: Any) -> None:
+        if isinstance(node, dict):
+            node.pop("wall_time_s", None)
+            for value in node.values():
+                drop_wall_times(value)
+        elif isinstance(node, list):
+            for value in node:
+                drop_wall_times(value)
+
+    drop_wall_times(results)
     return results, wall
 
 
@@ -68,7 +79,7 @@ def one_bench(tmp: Path, workers: int, dask: bool) -> dict[str, Any]:
     if dask:
         with (
             LocalCluster(
-                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0"
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
             ) as cluster,
             Client(cluster) as client,
         ):
