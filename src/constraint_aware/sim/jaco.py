@@ -593,27 +593,21 @@ class JacoSim(Embodiment):
         return best
 
     def _ik_from(self, q: FloatArray, pose: Pose) -> FloatArray:
-        """Damped least squares from q (6,) [rad] toward the TCP pose, within the joint limits:
-        up to 200 iterations, until the pose error (position [m], rotation vector [rad]) is
-        below 1e-7."""
-        m, d, site = self.model, self.data, self._tcp_site
-        goal, goal_rotation = np.asarray(pose.position, dtype=float), pose.orientation.as_matrix()
-        low = np.where(self._limited, self._range[:, 0], -np.inf)
-        high = np.where(self._limited, self._range[:, 1], np.inf)
-        damping = 1e-4 * np.eye(6)
-        err = np.empty(6)
+        m, d = self.model, self.data
         for _ in range(200):
-            d.qpos[self._qpos_slice] = q
+            d.qpos[self._arm_qpos] = q
             mujoco.mj_kinematics(m, d)
             mujoco.mj_comPos(m, d)
-            err[:3] = goal - d.site_xpos[site]
-            err[3:] = rotvec(goal_rotation @ d.site_xmat[site].reshape(3, 3).T)
-            if math.sqrt(float(err @ err)) < 1e-7:
+            pos = d.site_xpos[self._tcp_site]
+            rot = Rotation.from_matrix(d.site_xmat[self._tcp_site].reshape(3, 3))
+            err = np.concatenate([pose.position - pos, (pose.orientation * rot.inv()).as_rotvec()])
+            if np.linalg.norm(err) < 1e-7:
                 break
-            mujoco.mj_jacSite(m, d, self._jacp, self._jacr, site)
-            jac = self._jac[:, self._dof_slice]
-            step = jac.T @ np.linalg.solve(jac @ jac.T + damping, err)
-            q = np.clip(q + np.clip(step, -0.3, 0.3), low, high)
+            mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp_site)
+            jac = np.vstack([self._jacp, self._jacr])[:, self._arm_dof]
+            step = jac.T @ np.linalg.solve(jac @ jac.T + 1e-4 * np.eye(6), err)
+            q = q + np.clip(step, -0.3, 0.3)
+            q = np.where(self._limited, np.clip(q, *self._range.T), q)
         return q
 
     def _place(self, pose: Pose) -> None:
