@@ -22,6 +22,10 @@ the tree, one worker process each, one after the other) and compares them:
   over the tolerance passes only when every run that moves it differs only in such
   quantities.
 
+`--bench A/results.json B/results.json` compares two `cap bench` results instead: every
+outcome field (outcome, outcomes, success, successes, success_rate, n) must be equal and every
+median force (keys with "median" ending in "_N") within `TOLERANCE`; it lists what is not.
+
 The reference is typically a checkout of main (`git archive main | tar -x -C DIR`); the
 candidate defaults to this tree's src. Runs collected earlier (the subprocess's `--collect
 FILE`) can stand in for either tree's with `--reference-runs/--candidate-runs`; the re-runs
@@ -260,6 +264,37 @@ def _chaotic_runs(
     return out
 
 
+OUTCOME_KEYS = ("outcome", "outcomes", "success", "successes", "success_rate", "n")
+
+
+def compare_bench(a: Any, b: Any, path: str = "") -> dict[str, list[Any]]:
+    """Two `cap bench` results.json trees: outcome fields that differ and median forces that
+    differ by more than the tolerance (paths and values)."""
+    out: dict[str, list[Any]] = {"outcomes": [], "median_forces": [], "structure": []}
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in a.keys() | b.keys():
+            if key not in a or key not in b:
+                out["structure"].append(f"{path}/{key}")
+                continue
+            here = f"{path}/{key}"
+            if key in OUTCOME_KEYS and a[key] != b[key]:
+                out["outcomes"].append([here, a[key], b[key]])
+            elif "median" in key and key.endswith("_N"):
+                numbers = isinstance(a[key], float | int) and isinstance(b[key], float | int)
+                if numbers and _relative(float(a[key]), float(b[key])) > TOLERANCE:
+                    out["median_forces"].append([here, a[key], b[key]])
+            else:
+                for k, v in compare_bench(a[key], b[key], here).items():
+                    out[k] += v
+    elif isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            out["structure"].append(path)
+        for i, (x, y) in enumerate(zip(a, b, strict=False)):
+            for k, v in compare_bench(x, y, f"{path}[{i}]").items():
+                out[k] += v
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--reference", type=Path, help="the other tree's src directory")
@@ -270,10 +305,15 @@ def main() -> None:
     parser.add_argument("--robots", default="hook-hand,jaco")
     parser.add_argument("--collect", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--specs", type=Path, help=argparse.SUPPRESS)
+    parser.add_argument("--bench", type=Path, nargs=2, help="two cap bench results.json files")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
+    if args.bench is not None:
+        a, b = (json.loads(p.read_text()) for p in args.bench)
+        print(json.dumps(compare_bench(a, b), indent=1))
+        return
     robots = args.robots.split(",")
     if args.collect is not None:  # the subprocess: this tree's package
         if args.specs is not None:
