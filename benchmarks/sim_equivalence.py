@@ -267,31 +267,30 @@ def _chaotic_runs(
 OUTCOME_KEYS = ("outcome", "outcomes", "success", "successes", "success_rate", "n")
 
 
-def compare_bench(a: Any, b: Any, path: str = "") -> dict[str, list[Any]]:
-    """Two `cap bench` results.json trees: outcome fields that differ and median forces that
-    differ by more than the tolerance (paths and values)."""
+def compare_bench(a: Any, b: Any, path: str = "", median: bool = False) -> dict[str, list[Any]]:
+    """Two `cap bench` results.json trees: outcome fields that differ and median forces (every
+    number under a key with "median" ending in "_N") that differ by more than the tolerance
+    (paths and values)."""
     out: dict[str, list[Any]] = {"outcomes": [], "median_forces": [], "structure": []}
     if isinstance(a, dict) and isinstance(b, dict):
         for key in a.keys() | b.keys():
-            if key not in a or key not in b:
-                out["structure"].append(f"{path}/{key}")
-                continue
             here = f"{path}/{key}"
-            if key in OUTCOME_KEYS and a[key] != b[key]:
+            if key not in a or key not in b:
+                out["structure"].append(here)
+            elif key in OUTCOME_KEYS and a[key] != b[key]:
                 out["outcomes"].append([here, a[key], b[key]])
-            elif "median" in key and key.endswith("_N"):
-                numbers = isinstance(a[key], float | int) and isinstance(b[key], float | int)
-                if numbers and _relative(float(a[key]), float(b[key])) > TOLERANCE:
-                    out["median_forces"].append([here, a[key], b[key]])
             else:
-                for k, v in compare_bench(a[key], b[key], here).items():
+                forces = median or ("median" in key and key.endswith("_N"))
+                for k, v in compare_bench(a[key], b[key], here, forces).items():
                     out[k] += v
     elif isinstance(a, list) and isinstance(b, list):
         if len(a) != len(b):
             out["structure"].append(path)
         for i, (x, y) in enumerate(zip(a, b, strict=False)):
-            for k, v in compare_bench(x, y, f"{path}[{i}]").items():
+            for k, v in compare_bench(x, y, f"{path}[{i}]", median).items():
                 out[k] += v
+    elif median and isinstance(a, float | int) and isinstance(b, float | int):
+        out["median_forces"] += [[path, a, b]] if _relative(float(a), float(b)) > TOLERANCE else []
     return out
 
 
