@@ -88,6 +88,19 @@ def test_no_work_history_marks_in_the_product() -> None:
     assert not found, f"work-history marks (write what the code does and why):\n{listing}"
 
 
+def test_the_docs_pages_the_product_names_exist() -> None:
+    """A docstring, a card or a page that sends the reader to docs/NAME.md names a page that
+    is there."""
+    named = {
+        (str(path.relative_to(ROOT)), ref)
+        for path in product_files()
+        for ref in re.findall(r"\bdocs/[\w/.-]+?\.md\b", path.read_text(encoding="utf-8"))
+    }
+    assert named
+    missing = sorted(f"{where}: {ref}" for where, ref in named if not (ROOT / ref).is_file())
+    assert not missing, "pages named but missing:\n" + "\n".join(missing)
+
+
 # --- the site --------------------------------------------------------------------------------
 
 
