@@ -69,6 +69,13 @@ def assert_report_numbers_in_results(bench_dir: Path) -> None:
     assert not missing, f"numbers in report.md not in results.json: {missing}"
 
 
+def test_the_report_carries_no_work_history_marks(bench_dir: Path) -> None:
+    from test_docs import history_marks
+
+    marks = history_marks((bench_dir / "report.md").read_text(encoding="utf-8"))
+    assert not marks, f"work-history marks in report.md: {marks}"
+
+
 def test_every_figure_exists_and_is_a_png(bench_dir: Path) -> None:
     report = (bench_dir / "report.md").read_text()
     figures = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report)
