@@ -108,7 +108,7 @@ def jaco_run(
             deepest[key] = max(deepest.get(key, 0.0), 1000 * found.depth)
 
     note()
-    cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
+    cfg = executor_config(task).with_overrides(self_check__steps=0)
     assert cfg.workplane_normal is not None
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     d0 = rotate_about(sim.admissible_direction(), normal, math.radians(10.0))

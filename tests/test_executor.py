@@ -22,6 +22,13 @@ from constraint_aware.control.controllers import (
     ProjectionController,
 )
 from constraint_aware.control.executor import Executor, ExecutorConfig
+from constraint_aware.control.executor_config import (
+    GoalConfig,
+    GuardsConfig,
+    LimitsConfig,
+    RobotOverrides,
+    TorquePolicyConfig,
+)
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import reported_stiffness
 from constraint_aware.control.torque_policy import TorquePolicy
@@ -34,7 +41,7 @@ from constraint_aware.spatial import Pose, Wrench
 U = np.array([1.0, 0.0, 0.0])
 # the executor holds for offset_samples periods to sample F_d; the last sample is also the
 # first step's reading, so the first move is the command after HOLD hold commands
-HOLD = ExecutorConfig().offset_samples - 1
+HOLD = ExecutorConfig().timing.offset_samples - 1
 WEIGHT = np.array([0.0, 0.0, -6.0])  # the hand's own weight in the raw reading
 
 
@@ -150,7 +157,7 @@ def test_offset_is_subtracted_before_the_controller_sees_the_force() -> None:
             return inp.direction
 
     robot = FakeGuide()
-    Executor(robot, Spy(), ExecutorConfig(max_steps=3)).run(U)
+    Executor(robot, Spy(), ExecutorConfig(limits=LimitsConfig(max_steps=3))).run(U)
     assert np.allclose(seen[0].force, 0.0)  # the weight is in F_d, not in F
     assert np.allclose(seen[1].force, 0.0)  # aligned: no constraint force either
 
@@ -173,7 +180,7 @@ def test_nan_sensor_stops_without_raising() -> None:
 
 def test_lost_contact_stops_after_the_configured_steps() -> None:
     robot = FakeGuide(lose_contact_after=HOLD + 2)
-    cfg = ExecutorConfig(lost_contact_steps=4)
+    cfg = ExecutorConfig(guards=GuardsConfig(lost_contact_steps=4))
     rec = Executor(robot, FixedDirection(), cfg, monitor=robot).run(U)
     assert rec.outcome == "contact_lost"
     assert rec.steps[-1].step == 2 + 4  # contact gone from step 3; the 4th such step stops
@@ -185,7 +192,7 @@ def test_commands_stay_in_the_workplane() -> None:
             return np.array([1.0, 0.0, 1.0]) / math.sqrt(2)
 
     robot = FakeGuide()
-    Executor(robot, Upward(), ExecutorConfig(max_steps=4)).run(U)
+    Executor(robot, Upward(), ExecutorConfig(limits=LimitsConfig(max_steps=4))).run(U)
     for pose in robot.commands:
         assert abs(pose.position[2]) < 1e-12
     step = robot.commands[HOLD + 1].position - robot.commands[HOLD].position
@@ -198,7 +205,7 @@ def test_revolute_hand_turns_with_the_direction() -> None:
             return rotate_about(inp.direction, np.array([0.0, 0.0, 1.0]), math.radians(10))
 
     robot = FakeGuide()
-    cfg = ExecutorConfig(constraint_type="revolute", max_steps=3)
+    cfg = ExecutorConfig(constraint_type="revolute", limits=LimitsConfig(max_steps=3))
     Executor(robot, TurnTen(), cfg).run(U)
     rotvec = robot.commands[HOLD].orientation.as_rotvec()
     np.testing.assert_allclose(rotvec, [0.0, 0.0, math.radians(10)], atol=1e-12)
@@ -209,7 +216,10 @@ def test_revolute_hand_turns_with_the_direction() -> None:
 def test_torque_policy_rotates_by_v_over_r_then_adapts() -> None:
     robot = FakeGuide(torque=np.array([0.0, 0.0, 0.5]))  # the object drags the hand round
     cfg = ExecutorConfig(
-        constraint_type="revolute", max_steps=3, torque_policy=True, rotation_radius=0.1
+        constraint_type="revolute",
+        rotation_radius=0.1,
+        limits=LimitsConfig(max_steps=3),
+        torque_policy=TorquePolicyConfig(enabled=True),
     )
     rec = Executor(robot, FixedDirection(), cfg).run(U)
     w0 = 0.01 / 0.1
@@ -234,14 +244,14 @@ def test_bad_config_is_rejected_with_valid_names() -> None:
     with pytest.raises(InvalidInputError, match="prismatic, revolute"):
         ExecutorConfig(constraint_type="spherical")  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match="rotation_radius"):
-        ExecutorConfig(constraint_type="revolute", torque_policy=True)
+        ExecutorConfig(constraint_type="revolute", torque_policy=TorquePolicyConfig(enabled=True))
 
 
 def test_a_configured_stiffness_replaces_the_report_and_is_noted() -> None:
     with pytest.raises(InvalidInputError, match=r"stiffness.*\(0, 1e\+06\] \[N/m\]"):
-        ExecutorConfig(stiffness=-5.0)
+        ExecutorConfig(robot=RobotOverrides(stiffness=-5.0))
     with pytest.raises(InvalidInputError, match="stiffness"):
-        ExecutorConfig(stiffness=2e6)
+        ExecutorConfig(robot=RobotOverrides(stiffness=2e6))
     seen: list[float | None] = []
 
     class Recording(FixedDirection):
@@ -249,7 +259,7 @@ def test_a_configured_stiffness_replaces_the_report_and_is_noted() -> None:
             seen.append(inp.step_force)
             return super().next_direction(inp)
 
-    cfg = ExecutorConfig(max_steps=3, stiffness=2500.0)
+    cfg = ExecutorConfig(limits=LimitsConfig(max_steps=3), robot=RobotOverrides(stiffness=2500.0))
     rec = Executor(Stiff(), Recording(), cfg).run(d0(0))
     assert seen and all(f == pytest.approx(25.0) for f in seen)  # 2500 N/m x 1 cm
     assert "stiffness 2500 N/m from the configuration (robot reports 2000 N/m)" in rec.notes
@@ -257,9 +267,9 @@ def test_a_configured_stiffness_replaces_the_report_and_is_noted() -> None:
 
 def test_a_configured_grasp_play_gives_the_controller_the_force_it_hides() -> None:
     with pytest.raises(InvalidInputError, match=r"grasp_play.*\[0, 0\.005\] \[m\]"):
-        ExecutorConfig(grasp_play=0.006)  # more than half a 1 cm step
+        ExecutorConfig(robot=RobotOverrides(grasp_play=0.006))  # more than half a 1 cm step
     with pytest.raises(InvalidInputError, match="grasp_play"):
-        ExecutorConfig(grasp_play=math.nan)
+        ExecutorConfig(robot=RobotOverrides(grasp_play=math.nan))
     seen: list[float | None] = []
 
     class Recording(FixedDirection):
@@ -267,11 +277,15 @@ def test_a_configured_grasp_play_gives_the_controller_the_force_it_hides() -> No
             seen.append(inp.play_force)
             return super().next_direction(inp)
 
-    rec = Executor(Stiff(), Recording(), ExecutorConfig(max_steps=3, grasp_play=0.0015)).run(d0(0))
+    rec = Executor(
+        Stiff(),
+        Recording(),
+        ExecutorConfig(limits=LimitsConfig(max_steps=3), robot=RobotOverrides(grasp_play=0.0015)),
+    ).run(d0(0))
     assert seen and all(f == pytest.approx(3.0) for f in seen)  # 2000 N/m x 1.5 mm
     assert "grasp play 1.50 mm from the configuration" in rec.notes
     seen.clear()
-    Executor(Stiff(), Recording(), ExecutorConfig(max_steps=3)).run(d0(0))
+    Executor(Stiff(), Recording(), ExecutorConfig(limits=LimitsConfig(max_steps=3))).run(d0(0))
     assert seen and all(f is None for f in seen)  # no play configured: nothing to add
 
 
@@ -359,7 +373,7 @@ def test_goal_travel_stops_a_robot_without_monitor_or_optional_members(
     robot = required_only(FakeGuide())  # only the required members
     # without contact sensing the executor judges contact from |F|, which on this frictionless
     # fake is 0 once aligned: switch that judgement off
-    cfg = ExecutorConfig(goal_travel=0.1, lost_contact_force=0.0)
+    cfg = ExecutorConfig(goal=GoalConfig(travel=0.1), guards=GuardsConfig(lost_contact_force=0.0))
     rec = Executor(robot, ProjectionController(), cfg).run(d0(30))
     assert rec.outcome == "success" and rec.reason.startswith("goal: travel")
     assert rec.goal is not None and rec.goal["reached"] >= 0.1
@@ -369,11 +383,13 @@ def test_goal_travel_stops_a_robot_without_monitor_or_optional_members(
 
 def test_success_on_the_last_allowed_move_is_success() -> None:
     robot = FakeGuide()
-    cfg = ExecutorConfig(goal_travel=0.05, max_steps=5)
+    cfg = ExecutorConfig(goal=GoalConfig(travel=0.05), limits=LimitsConfig(max_steps=5))
     rec = Executor(robot, FixedDirection(), cfg).run(U)
     assert rec.outcome == "success" and rec.n_steps == 5
     rec = Executor(
-        FakeGuide(), FixedDirection(), ExecutorConfig(goal_travel=0.06, max_steps=5)
+        FakeGuide(),
+        FixedDirection(),
+        ExecutorConfig(goal=GoalConfig(travel=0.06), limits=LimitsConfig(max_steps=5)),
     ).run(U)
     assert rec.outcome == "timeout" and rec.n_steps == 5
 
@@ -402,11 +418,15 @@ def test_predicted_force_stops_before_the_limit() -> None:
 
 def test_derived_threshold_is_recorded() -> None:
     robot = FakeGuide()
-    rec = Executor(robot, FixedDirection(), ExecutorConfig(threshold=None, max_steps=2)).run(U)
+    rec = Executor(
+        robot, FixedDirection(), ExecutorConfig(threshold=None, limits=LimitsConfig(max_steps=2))
+    ).run(U)
     assert rec.threshold == pytest.approx(MIN_THRESHOLD)  # a noise-free fake: the floor
-    rec = Executor(FakeGuide(), FixedDirection(), ExecutorConfig(max_steps=2)).run(U)
+    rec = Executor(
+        FakeGuide(), FixedDirection(), ExecutorConfig(limits=LimitsConfig(max_steps=2))
+    ).run(U)
     assert rec.threshold == pytest.approx(MIN_THRESHOLD)  # derived is the default
-    cfg = ExecutorConfig(threshold=3.0, max_steps=2)
+    cfg = ExecutorConfig(threshold=3.0, limits=LimitsConfig(max_steps=2))
     assert Executor(FakeGuide(), FixedDirection(), cfg).run(U).threshold == 3.0
 
 
@@ -431,10 +451,10 @@ def test_revolute_normal_is_oriented_from_the_hinge_point() -> None:
     robot = FakeGuide()
     cfg = ExecutorConfig(
         constraint_type="revolute",
-        max_steps=2,
-        torque_policy=True,
         rotation_radius=0.5,
         hinge_point=(0.0, -0.5, 0.0),
+        limits=LimitsConfig(max_steps=2),
+        torque_policy=TorquePolicyConfig(enabled=True),
     )
     rec = Executor(robot, TurnTen(), cfg).run(U)
     assert any("flipped" in n for n in rec.notes)
@@ -453,7 +473,9 @@ class Flipped(FakeGuide):
 def test_self_check_names_a_flipped_sign() -> None:
     rec = Executor(Flipped(), FixedDirection(), ExecutorConfig()).run(d0(30))
     assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
-    rec = Executor(FakeGuide(), FixedDirection(), ExecutorConfig(max_steps=10)).run(d0(30))
+    rec = Executor(
+        FakeGuide(), FixedDirection(), ExecutorConfig(limits=LimitsConfig(max_steps=10))
+    ).run(d0(30))
     assert rec.outcome == "timeout"
     assert any(n.startswith("self-check passed") for n in rec.notes)
 
@@ -484,8 +506,12 @@ def test_a_hold_does_not_hide_a_flipped_sign() -> None:
     cfg = ExecutorConfig()
     rec = Executor(Flipped(), Holds(lambda call: call == 2), cfg).run(d0(30))
     assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
-    assert rec.n_steps <= cfg.self_check_steps + 1
-    healthy = Executor(FakeGuide(), Holds(lambda call: call == 2), ExecutorConfig(max_steps=10))
+    assert rec.n_steps <= cfg.self_check.steps + 1
+    healthy = Executor(
+        FakeGuide(),
+        Holds(lambda call: call == 2),
+        ExecutorConfig(limits=LimitsConfig(max_steps=10)),
+    )
     rec = healthy.run(d0(30))
     assert rec.outcome == "timeout"
     assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
@@ -496,9 +522,13 @@ def test_holds_on_every_other_step_do_not_hide_a_flipped_sign() -> None:
     confirmation skip (SELF_CHECK_SETTLE_MOVES); the cosine with the deflection still takes
     them, and a flipped sign reads ~ -1 there whatever the hand does."""
     every_other = Holds(lambda call: call % 2 == 0)
-    rec = Executor(Flipped(), every_other, ExecutorConfig(max_steps=40)).run(d0(30))
+    rec = Executor(Flipped(), every_other, ExecutorConfig(limits=LimitsConfig(max_steps=40))).run(
+        d0(30)
+    )
     assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
-    rec = Executor(FakeGuide(), every_other, ExecutorConfig(max_steps=40)).run(d0(30))
+    rec = Executor(FakeGuide(), every_other, ExecutorConfig(limits=LimitsConfig(max_steps=40))).run(
+        d0(30)
+    )
     assert rec.outcome == "timeout", rec.reason
 
 
@@ -517,7 +547,7 @@ def test_the_controller_is_told_the_last_move_and_the_hand_travel() -> None:
     """Before the first move neither is known; after it, the move (1 cm) and the hand's
     travel from the pose at that command: on the guide along U, 1 cm x cos(30 deg)."""
     ctrl = Inputs()
-    Executor(FakeGuide(), ctrl, ExecutorConfig(max_steps=3)).run(d0(30))
+    Executor(FakeGuide(), ctrl, ExecutorConfig(limits=LimitsConfig(max_steps=3))).run(d0(30))
     first, second = ctrl.inputs[:2]
     assert first.last_move is None and first.hand_travel is None
     assert second.last_move == pytest.approx(0.01)
@@ -593,7 +623,7 @@ class NumpyDrawer:
 @pytest.mark.parametrize("offset", [-30.0, 20.0])
 def test_an_outside_robot_reaches_a_goal_without_simulator(offset: float) -> None:
     robot = NumpyDrawer()
-    cfg = ExecutorConfig(goal_travel=0.2, workplane_normal=(0.0, 0.0, 1.0))
+    cfg = ExecutorConfig(workplane_normal=(0.0, 0.0, 1.0), goal=GoalConfig(travel=0.2))
     rec = Executor(robot, PolicyController(), cfg).run(d0(offset))  # type: ignore[arg-type]
     assert rec.outcome == "success" and rec.reason.startswith("goal: travel")
     assert robot.s >= 0.2 - 1e-9 and robot.held == 1
@@ -670,7 +700,7 @@ def test_an_invalid_reported_stiffness_is_ignored_and_named(report: object) -> N
     note = f"ignored translational_stiffness {report!r} (valid: finite, > 0 [N/m])"
     assert reported_stiffness(Reports()) == (None, note)
     ctrl = StepForceSeen()
-    rec = Executor(Reports(), ctrl, ExecutorConfig(max_steps=3)).run(d0(0))
+    rec = Executor(Reports(), ctrl, ExecutorConfig(limits=LimitsConfig(max_steps=3))).run(d0(0))
     assert note in rec.notes
     assert ctrl.seen and all(s is None for s in ctrl.seen)
 
@@ -683,7 +713,7 @@ def test_a_valid_reported_stiffness_gives_the_controller_k_delta() -> None:
     assert reported_stiffness(Reports()) == (2000.0, "")
     assert reported_stiffness(FakeGuide()) == (None, "")  # reports none: nothing to name
     ctrl = StepForceSeen()
-    cfg = ExecutorConfig(max_steps=3)
+    cfg = ExecutorConfig(limits=LimitsConfig(max_steps=3))
     rec = Executor(Reports(), ctrl, cfg).run(d0(0))
     assert not any("ignored" in n for n in rec.notes)
     assert ctrl.seen and all(s == pytest.approx(2000.0 * cfg.step_length) for s in ctrl.seen)
@@ -708,7 +738,7 @@ class PressingGuide(FakeGuide):
 
 
 def test_the_self_check_judges_the_workplane_only() -> None:
-    cfg = ExecutorConfig(max_steps=10, workplane_normal=(0.0, 0.0, 1.0))
+    cfg = ExecutorConfig(workplane_normal=(0.0, 0.0, 1.0), limits=LimitsConfig(max_steps=10))
     rec = Executor(PressingGuide(), FixedDirection(), cfg).run(d0(10))
     assert rec.outcome == "timeout", rec.reason  # healthy in the plane: not stopped
     assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
@@ -726,7 +756,7 @@ def test_the_self_check_judges_the_workplane_only() -> None:
 
 def test_too_few_judged_moves_leave_the_self_check_inconclusive() -> None:
     # aligned with the guide: no force in the plane, so no move is judged, only the press
-    cfg = ExecutorConfig(max_steps=10, workplane_normal=(0.0, 0.0, 1.0))
+    cfg = ExecutorConfig(workplane_normal=(0.0, 0.0, 1.0), limits=LimitsConfig(max_steps=10))
     rec = Executor(PressingGuide(), FixedDirection(), cfg).run(d0(0))
     assert rec.outcome == "timeout", rec.reason
     assert any(n.startswith("self-check inconclusive") for n in rec.notes), rec.notes

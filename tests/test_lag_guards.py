@@ -21,6 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.controllers import ControlInput, FixedDirection, PolicyController
 from constraint_aware.control.executor import Executor, ExecutorConfig
+from constraint_aware.control.executor_config import GoalConfig
 from constraint_aware.control.record import RunRecord
 from constraint_aware.geometry import rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -119,8 +120,8 @@ def d0(offset_deg: float) -> np.ndarray:
     return rotate_about(U, Z, math.radians(offset_deg))
 
 
-HOLD = ExecutorConfig().offset_samples - 1
-GOAL = ExecutorConfig(goal_travel=0.2)
+HOLD = ExecutorConfig().timing.offset_samples - 1
+GOAL = ExecutorConfig(goal=GoalConfig(travel=0.2))
 
 
 #: The policy these guard tests were written with (the stop-15 default). The retrained default
@@ -209,7 +210,7 @@ def test_a_wrong_wrench_convention_is_caught_with_the_lag_model(
     robot = LaggingGuide(tau=0.2, report_tau=0.2 * tau_error, sensor=sensor)
     rec = run(robot, policy=False)
     assert rec.outcome == "sensor_convention", rec.reason
-    assert rec.n_steps <= ExecutorConfig().self_check_steps
+    assert rec.n_steps <= ExecutorConfig().self_check.steps
 
 
 @pytest.mark.parametrize("report_tau", [True, False])
