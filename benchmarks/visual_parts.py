@@ -9,14 +9,13 @@ the hinge side (its placement today, azimuth +90 deg) and on the free edge's sid
 and (3) Jaco drawer and door runs with the parts solid for the arm (sim.objects.
 ARM_CONTACT_BIT) against the visual parts. The Jaco runs use the default policy and the
 classical controller from 10 deg, the executor's start-of-run self-check off (it stops most
-arm runs before they move: issue 13's notes). Writes JSON, prints a table.
+arm runs before they move). Writes JSON, prints a table.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import functools
 import json
 import math

@@ -232,10 +232,9 @@ def test_the_self_check_still_stops_a_wrong_convention_on_the_arms_plate(fault: 
     hold = ExecutorConfig().timing.offset_samples - 1
     spec = RunSpec("plate-sliding", robot="jaco", controller="policy", offset_deg=-30.0, seed=1)
     record, _ = run(spec, wrap=lambda sim: FaultyRobot(sim, fault, hold))
-    # stopped within the self-check's moves: by it, by the force limit, or (the rotated frame
-    # since stop 29: its first reading, scaled by the start's travel scaling, turns d faster
-    # off the path) by the arm's deflection disagreeing with the sensor ("or the sensor reads
-    # low"), at step 3 and 11.3 N where the self-check stopped it at step 5 and 13.3 N
+    # stopped within the self-check's moves: by it, by the force limit, or (the rotated frame:
+    # its first reading, scaled by the start's travel scaling, turns d faster off the path) by
+    # the arm's deflection disagreeing with the sensor ("or the sensor reads low")
     assert record.outcome in ("sensor_convention", "force_limit", "not_following"), record.reason
     assert record.n_steps <= ExecutorConfig().self_check.steps
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import logging
 import math
 import subprocess
 import sys
@@ -29,11 +31,12 @@ from constraint_aware.control.executor_config import (
     RobotOverrides,
     TorquePolicyConfig,
 )
-from constraint_aware.control.record import RunRecord
+from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord
 from constraint_aware.control.robot import reported_stiffness
+from constraint_aware.control.run_inputs import INPUT_NAMES
 from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import MIN_THRESHOLD
-from constraint_aware.errors import InvalidInputError
+from constraint_aware.errors import ConfigError, InvalidInputError
 from constraint_aware.geometry import angle_deg, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.spatial import Pose, Wrench
@@ -379,6 +382,18 @@ def test_goal_travel_stops_a_robot_without_monitor_or_optional_members(
     assert rec.goal is not None and rec.goal["reached"] >= 0.1
     assert math.isnan(rec.progress)  # no monitor: no ground truth in the record
     json.dumps(rec.to_dict(), allow_nan=False)
+
+
+def test_without_contact_sensing_contact_is_judged_from_the_force(
+    required_only: type[Any],
+) -> None:
+    """|F| above guards.contact_force once (the 30 deg error's first reading), then below
+    guards.lost_contact_force (aligned on the frictionless guide) for lost_contact_steps."""
+    robot = required_only(FakeGuide())
+    rec = Executor(robot, ProjectionController(), ExecutorConfig()).run(d0(30))
+    assert rec.outcome == "contact_lost" and rec.reason == "no hand-object contact for 5 steps"
+    forces = [s.force_norm for s in rec.steps]
+    assert forces[1] > 1.0 and all(f < 0.25 for f in forces[-5:])
 
 
 def test_success_on_the_last_allowed_move_is_success() -> None:
@@ -761,3 +776,290 @@ def test_too_few_judged_moves_leave_the_self_check_inconclusive() -> None:
     assert rec.outcome == "timeout", rec.reason
     assert any(n.startswith("self-check inconclusive") for n in rec.notes), rec.notes
     assert not any(n.startswith("self-check passed") for n in rec.notes)
+
+
+# --- the run's inputs and the controller's stages -------------------------------------------
+class Staged(FixedDirection):
+    """A stand-in for a controller with stages: each needs some of the run's inputs."""
+
+    def __init__(self, rotation_rate: float | None = None) -> None:
+        self.rotation_rate = rotation_rate
+        self.asked: list[str] = []
+
+    def stage_inputs(self, constraint_type: str) -> dict[str, tuple[str, ...]]:
+        self.asked.append(constraint_type)
+        return {
+            "magnitude_input": ("step_force",),
+            "mirror_average": ("workplane_normal", "step_force"),
+            "feed_forward": ("rotation_rate",),
+            "lag_undo": ("tracking_time_constant",),
+            "play": ("play_force",),
+        }
+
+
+@dataclass
+class Lagging(Stiff):
+    """Stiff, also reporting its tracking time constant."""
+
+    tracking_time_constant: float = 0.05
+
+
+def constraint_aware_warnings(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [
+        r.getMessage()
+        for r in caplog.records
+        if r.name == "constraint_aware" and r.levelno == logging.WARNING
+    ]
+
+
+def test_the_record_lists_each_input_with_its_source() -> None:
+    rec = Executor(
+        FakeGuide(), FixedDirection(), ExecutorConfig(limits=LimitsConfig(max_steps=2))
+    ).run(U)
+    assert list(rec.inputs) == list(INPUT_NAMES)
+    missing = {"value": None, "source": "missing"}
+    assert rec.inputs["step_force"] == missing  # the fake reports no stiffness
+    assert rec.inputs["tracking_time_constant"] == missing
+    assert rec.inputs["workplane_normal"] == {"value": [0.0, 0.0, 1.0], "source": "config"}
+    assert rec.inputs["rotation_rate"] == missing  # FixedDirection has none
+    assert rec.inputs["play_force"] == missing  # no grasp play configured
+    assert rec.stages == {}  # a controller without stage_inputs has no stages
+
+    cfg = ExecutorConfig(limits=LimitsConfig(max_steps=2), robot=RobotOverrides(grasp_play=0.0015))
+    rec = Executor(Lagging(), Staged(rotation_rate=0.4), cfg).run(U)
+    assert rec.inputs["step_force"] == {"value": pytest.approx(20.0), "source": "robot"}
+    assert rec.inputs["tracking_time_constant"] == {"value": 0.05, "source": "robot"}
+    assert rec.inputs["rotation_rate"] == {"value": 0.4, "source": "controller"}
+    assert rec.inputs["play_force"] == {"value": pytest.approx(3.0), "source": "config"}
+
+    override = ExecutorConfig(
+        limits=LimitsConfig(max_steps=2), robot=RobotOverrides(stiffness=2500.0)
+    )
+    rec = Executor(FakeGuide(), FixedDirection(), override).run(U)
+    assert rec.inputs["step_force"] == {"value": pytest.approx(25.0), "source": "config"}
+    play_unknown = ExecutorConfig(
+        limits=LimitsConfig(max_steps=2), robot=RobotOverrides(grasp_play=0.001)
+    )
+    rec = Executor(FakeGuide(), FixedDirection(), play_unknown).run(U)  # no stiffness to use it
+    assert rec.inputs["play_force"] == missing
+
+
+def test_stages_are_recorded_and_each_missing_input_warned_once(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    caplog.set_level(logging.WARNING, logger="constraint_aware")
+    ctrl = Staged()
+    cfg = ExecutorConfig(limits=LimitsConfig(max_steps=3), constraint_type="revolute")
+    rec = Executor(FakeGuide(), ctrl, cfg).run(U)
+    assert ctrl.asked == ["revolute"]
+    assert rec.stages == {
+        "magnitude_input": "off: missing step_force",
+        "mirror_average": "off: missing step_force",
+        "feed_forward": "off: missing rotation_rate",
+        "lag_undo": "off: missing tracking_time_constant",
+        "play": "off: missing play_force",
+    }
+    lines = constraint_aware_warnings(caplog)
+    assert len(lines) == 4  # one per missing input, not per stage nor per step
+    step_force = [line for line in lines if line.startswith("step_force missing")]
+    assert step_force == [
+        "step_force missing (the robot reports no translational_stiffness and "
+        "ExecutorConfig.robot.stiffness is not set): stages magnitude_input, mirror_average off"
+    ]
+    assert any(line.startswith("rotation_rate missing (") for line in lines)
+
+    caplog.clear()
+    flat = ExecutorConfig(limits=LimitsConfig(max_steps=3), workplane_normal=None)
+    rec = Executor(FakeGuide(), Staged(), flat).run(U)
+    assert rec.stages["mirror_average"] == "off: missing workplane_normal, step_force"
+    assert rec.inputs["workplane_normal"] == {"value": None, "source": "missing"}
+
+    caplog.clear()
+    complete = ExecutorConfig(
+        limits=LimitsConfig(max_steps=3), robot=RobotOverrides(grasp_play=0.001)
+    )
+    rec = Executor(Lagging(), Staged(rotation_rate=0.4), complete).run(U)
+    assert set(rec.stages.values()) == {"active"}
+    assert constraint_aware_warnings(caplog) == []
+
+
+def test_inputs_and_stages_survive_json(tmp_path: Path) -> None:
+    rec = Executor(FakeGuide(), Staged(), ExecutorConfig(limits=LimitsConfig(max_steps=2))).run(U)
+    back = RunRecord.load(rec.save(tmp_path / "r.json"))
+    assert back.inputs == rec.inputs and back.stages == rec.stages
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert data["stages"]["lag_undo"] == "off: missing tracking_time_constant"
+
+
+@pytest.mark.parametrize(
+    "answer",
+    [["step_force"], {"magnitude_input": ("stiffness",)}, {"magnitude_input": "step_force"}],
+)
+def test_a_bad_stage_declaration_is_named_and_the_robot_held(answer: object) -> None:
+    class BadStages(FixedDirection):
+        def stage_inputs(self, constraint_type: str) -> object:
+            return answer
+
+    robot = Holding()
+    with pytest.raises(InvalidInputError, match=r"stage_inputs") as info:
+        Executor(robot, BadStages(), ExecutorConfig()).run(U)
+    rec = info.value.run_record  # type: ignore[attr-defined]
+    assert rec.outcome == "error" and "stage_inputs" in rec.reason
+    assert robot.holds == 1 and robot.commands == []
+
+
+# --- the step API never trusts its arguments -------------------------------------------------
+GOOD_WRENCH = Wrench(np.zeros(3), np.zeros(3))
+GOOD_POSE = Pose(np.zeros(3), Rotation.identity())
+BAD_STEPS: list[tuple[object, object, str]] = [
+    ([0.0, 0.0, 0.0], GOOD_POSE, r"wrench: expected a Wrench"),
+    ((np.zeros(3), np.zeros(3)), GOOD_POSE, r"wrench: expected a Wrench"),
+    (Wrench(np.zeros(2), np.zeros(3)), GOOD_POSE, r"wrench\.force: expected shape \(3,\)"),
+    (Wrench(np.array([1j, 0, 0]), np.zeros(3)), GOOD_POSE, r"wrench\.force: .*complex"),
+    (Wrench(np.zeros(3), "abc"), GOOD_POSE, r"wrench\.torque"),  # type: ignore[arg-type]
+    (Wrench(np.array([None, 0, 0]), np.zeros(3)), GOOD_POSE, r"wrench\.force"),
+    (Wrench(np.ones(3, dtype=bool), np.zeros(3)), GOOD_POSE, r"wrench\.force"),
+    (GOOD_WRENCH, np.zeros(3), r"pose: expected a Pose"),
+    (GOOD_WRENCH, Pose(np.zeros(4), Rotation.identity()), r"pose\.position: expected shape"),
+    (GOOD_WRENCH, Pose(np.zeros((1, 3)), Rotation.identity()), r"pose\.position: expected shape"),
+    (GOOD_WRENCH, Pose(np.zeros(3), np.eye(3)), r"pose\.orientation"),
+    (
+        GOOD_WRENCH,
+        Pose(np.zeros(3), Rotation.from_quat([[0, 0, 0, 1], [0, 0, 0, 1]])),
+        r"pose\.orientation: expected a single",
+    ),
+]
+
+
+@pytest.mark.parametrize("moving", [False, True], ids=["sampling", "moving"])
+@pytest.mark.parametrize(("wrench", "pose", "match"), BAD_STEPS)
+def test_a_malformed_step_argument_is_named_the_record_kept_and_the_robot_held(
+    wrench: object, pose: object, match: str, moving: bool
+) -> None:
+    robot = Holding()
+    ex = Executor(robot, FixedDirection(), ExecutorConfig())
+    record = ex.start(U)
+    for _ in range(HOLD + 3 if moving else 2):  # good periods first
+        out = ex.step(robot.read_wrench(), robot.read_pose())
+        assert isinstance(out, Pose)
+        robot.command_pose(out)
+        robot.advance()
+    sent = len(robot.commands)
+    with pytest.raises(InvalidInputError, match=match) as info:
+        ex.step(wrench, pose)  # type: ignore[arg-type]
+    assert info.value.run_record is record  # type: ignore[attr-defined]
+    assert record.outcome == "error" and "InvalidInputError" in record.reason
+    assert robot.holds == 1
+    assert ex.step(robot.read_wrench(), robot.read_pose()) is record  # finished: no command
+    assert len(robot.commands) == sent
+
+
+def test_a_non_finite_reading_is_a_sensor_fault_not_an_input_error() -> None:
+    """NaN readings are well-formed: the guards stop on them with a named outcome."""
+    robot = Holding(nan_after=HOLD + 2)
+    rec = Executor(robot, FixedDirection(), ExecutorConfig()).run(U)
+    assert rec.outcome == "nan" and robot.holds == 1
+
+    @dataclass
+    class NanPose(Holding):
+        def read_pose(self) -> Pose:
+            return Pose(np.full(3, np.nan), self.target.orientation)
+
+    rec = Executor(NanPose(), FixedDirection(), ExecutorConfig()).run(U)
+    assert rec.outcome == "bad_pose"
+
+
+@pytest.mark.parametrize(
+    ("d0", "match"),
+    [
+        ([1.0, math.nan, 0.0], r"initial_direction: contains NaN"),
+        ([1.0, math.inf, 0.0], r"initial_direction: contains NaN or inf"),
+        (np.array([1.0 + 1j, 0.0, 0.0]), r"initial_direction: .*complex"),
+        ([1.0, 0.0], r"initial_direction: expected shape \(3,\)"),
+        ([0.0, 0.0, 0.0], r"initial_direction: must be a non-zero vector"),
+        ("x", r"initial_direction"),
+    ],
+)
+def test_a_bad_initial_direction_is_named_and_the_robot_held(d0: object, match: str) -> None:
+    robot = Holding()
+    ex = Executor(robot, FixedDirection(), ExecutorConfig())
+    with pytest.raises(InvalidInputError, match=match) as info:
+        ex.start(d0)  # type: ignore[arg-type]
+    record = info.value.run_record  # type: ignore[attr-defined]
+    assert record.outcome == "error" and record is ex.record
+    assert robot.holds == 1
+    assert ex.step(robot.read_wrench(), robot.read_pose()) is record
+    assert robot.commands == []
+
+
+def test_a_label_that_is_not_a_dict_is_named() -> None:
+    with pytest.raises(InvalidInputError, match="label: expected a dict"):
+        Executor(Holding(), FixedDirection(), ExecutorConfig()).start(U, ["task"])  # type: ignore[arg-type]
+
+
+def test_a_non_finite_commanded_pose_at_the_start_is_never_sent() -> None:
+    @dataclass
+    class Lost(Holding):
+        def commanded_pose(self) -> Pose:
+            return Pose(np.array([0.0, math.nan, 0.0]), Rotation.identity())
+
+    robot = Lost()
+    rec = Executor(robot, FixedDirection(), ExecutorConfig()).run(U)
+    assert rec.outcome == "bad_pose" and "commanded pose" in rec.reason
+    assert robot.commands == [] and robot.holds == 1
+
+
+def test_a_second_start_aborts_the_run_in_progress() -> None:
+    robot = Holding()
+    ex = Executor(robot, FixedDirection(), ExecutorConfig())
+    first = ex.start(U, {"run": 1})
+    for _ in range(HOLD + 3):
+        out = ex.step(robot.read_wrench(), robot.read_pose())
+        assert isinstance(out, Pose)
+        robot.command_pose(out)
+        robot.advance()
+    second = ex.start(U, {"run": 2})
+    assert first.outcome == "aborted" and "start() was called again" in first.reason
+    assert "aborted" in OUTCOMES and OUTCOME_MEANINGS["aborted"]
+    assert robot.holds == 1  # told to hold when the first run ended
+    assert second is ex.record and not second.finished and second.label == {"run": 2}
+    held = ex.step(robot.read_wrench(), robot.read_pose())  # sampling F_d again: the hold pose
+    assert isinstance(held, Pose) and held.position.tolist() == robot.target.position.tolist()
+    # a finished run is not aborted: starting after it ends nothing
+    done = Executor(robot, FixedDirection(), ExecutorConfig(limits=LimitsConfig(max_steps=1))).run(
+        U
+    )
+    assert done.outcome == "timeout"
+
+
+# --- 3-D motion: no workplane normal ---------------------------------------------------------
+THREE_D = ExecutorConfig(workplane_normal=None, limits=LimitsConfig(max_steps=6))
+
+
+@pytest.mark.parametrize(
+    "controller",
+    [FixedDirection(), ProjectionController(), PolicyController(), Staged()],
+    ids=["fixed", "projection", "policy", "staged"],
+)
+def test_3d_motion_runs_every_controller(controller: Any) -> None:
+    up = np.array([1.0, 0.0, 1.0]) / math.sqrt(2)  # out of any workplane: kept in 3-D
+    robot = FakeGuide()
+    rec = Executor(robot, controller, THREE_D, monitor=robot).run(up)
+    assert rec.outcome == "timeout", rec.reason
+    assert rec.steps[0].direction == pytest.approx(up.tolist())
+    assert rec.inputs["workplane_normal"]["source"] == "missing"
+
+
+def test_3d_motion_revolute_and_goals() -> None:
+    robot = FakeGuide()
+    revolute = dataclasses.replace(THREE_D, constraint_type="revolute")
+    rec = Executor(robot, ProjectionController(), revolute).run(d0(20))
+    assert rec.outcome == "timeout", rec.reason
+    travel = dataclasses.replace(THREE_D, goal=GoalConfig(travel=0.03))
+    assert Executor(FakeGuide(), FixedDirection(), travel).run(U).outcome == "success"
+    with pytest.raises(ConfigError, match=r"ExecutorConfig\.workplane_normal"):
+        dataclasses.replace(THREE_D, goal=GoalConfig(rotation=1.0))
+    with pytest.raises(ConfigError, match=r"ExecutorConfig\.workplane_normal"):
+        dataclasses.replace(
+            THREE_D, rotation_radius=0.1, torque_policy=TorquePolicyConfig(enabled=True)
+        )

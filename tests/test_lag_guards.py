@@ -124,10 +124,11 @@ HOLD = ExecutorConfig().timing.offset_samples - 1
 GOAL = ExecutorConfig(goal=GoalConfig(travel=0.2))
 
 
-#: The policy these guard tests were written with (the stop-15 default). The retrained default
-#: aligns d on this frictionless, resistance-free guide to 0.1 deg, where |F| (0.04 N) stays
-#: under the dead band and the executor reads `contact_lost` after 5 steps: a limit of the
-#: idealized guide (a real joint resists), not of the guards tested here.
+#: The policy these guard tests were written with (an earlier default, kept as test data; the
+#: file is named after its training config). The current default aligns d on this
+#: frictionless, resistance-free guide to 0.1 deg, where |F| (0.04 N) stays under the dead band
+#: and the executor reads `contact_lost` after 5 steps: a limit of the idealized guide (a real
+#: joint resists), not of the guards tested here.
 GUARD_TEST_POLICY = Path(__file__).resolve().parent / "data" / "stop15_default.npz"
 
 

@@ -307,6 +307,48 @@ def test_settings_reach_the_run_and_bad_values_fail_before_moving() -> None:
         run(bad)
     with pytest.raises(UnknownNameError):
         RunSpec(overrides=(("executor__treshold", 1.0),))
+    with pytest.raises(UnknownNameError, match="executor__limits__max_steps"):
+        RunSpec(overrides=(("executor__max_steps", 1),))  # a group's field needs its group
+
+
+def test_cap_run_json_shows_the_settings_inputs_and_stages(tmp_path: Path) -> None:
+    from constraint_aware.cli import main
+    from constraint_aware.control.run_inputs import INPUT_NAMES
+
+    path = tmp_path / "r.json"
+    rc = main(
+        [
+            "run", "drawer-opening", "--controller", "fixed", "--offset", "0",
+            "--set", "max_steps=5", "--set", "executor.limits.max_steps=2",
+            "--set", "executor.robot.grasp_play=0.001", "--json", str(path),
+        ]
+    )  # fmt: skip
+    data = json.loads(path.read_text())
+    assert rc == 1 and data["outcome"] == "timeout"
+    assert data["summary"]["steps"] == 2  # the executor's own field wins over the task's
+    assert list(data["inputs"]) == list(INPUT_NAMES)
+    k = task_config("drawer-opening").hand.translational_stiffness
+    assert data["inputs"]["play_force"] == {"value": pytest.approx(k * 0.001), "source": "config"}
+    assert data["inputs"]["step_force"]["source"] == "robot"
+    assert data["stages"] == {}  # the fixed controller declares no stages
+
+
+def test_a_3d_executor_runs_in_the_simulator_and_the_gym_env() -> None:
+    """`workplane_normal=None` (3-D motion): d0 still turns about the task's normal, and the
+    controllers get no rotation axis."""
+    spec = RunSpec("door-opening", "policy", 10.0).with_settings(
+        parse_settings(["executor.workplane_normal=none", "executor.limits.max_steps=3"])
+    )
+    record, _sim = run(spec)
+    assert record.outcome == "timeout", record.reason
+    assert record.inputs["workplane_normal"]["source"] == "missing"
+    gym = pytest.importorskip("gymnasium")  # importing constraint_aware registers the envs
+    env = gym.make(
+        "constraint_aware/DrawerOpening-v0",
+        executor={"workplane_normal": None, "limits__max_steps": 2},
+    )
+    env.reset(seed=0)
+    env.close()
 
 
 def test_errors_survive_pickling_between_processes() -> None:

@@ -98,7 +98,7 @@ def gather_inputs(
     else:
         out["tracking_time_constant"] = RunInput(tracking_time_constant, "robot")
     if normal is None:
-        out["workplane_normal"] = _missing("ExecutorConfig.workplane_normal is None (3-D motion)")
+        out["workplane_normal"] = _missing("ExecutorConfig.workplane_normal is None: 3-D motion")
     else:
         vec = np.asarray(normal, dtype=float)
         out["workplane_normal"] = RunInput((float(vec[0]), float(vec[1]), float(vec[2])), "config")

@@ -147,7 +147,8 @@ class RunSpec:
         executor_keys = override_keys()
         for name in self.executor_overrides:
             if name not in executor_keys:
-                raise UnknownNameError("executor setting", name, executor_keys)
+                valid = [EXECUTOR_PREFIX + k for k in executor_keys]
+                raise UnknownNameError("executor override", EXECUTOR_PREFIX + name, valid)
         parse_robot(self.robot)  # an unknown embodiment or variant names the valid ones
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
@@ -204,7 +203,9 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         }
         self._record = self.executor.start(d0, label)
         # F_d sampling holds the hand; it ends with the first move (along d0)
-        for _ in range(cfg.timing.offset_samples + cfg.limits.max_steps):  # bounded: the executor stops
+        for _ in range(
+            cfg.timing.offset_samples + cfg.limits.max_steps
+        ):  # bounded: the executor stops
             if self._controller.calls > 0:
                 break
             out = self.executor.step(sim.read_wrench(), sim.read_pose())
