@@ -37,6 +37,7 @@ from constraint_aware.bench.provenance import write_results
 from constraint_aware.control.executor_config import ExecutorConfig
 from constraint_aware.control.lag import LagModel
 from constraint_aware.control.robot import reported_stiffness, reported_time_constant
+from constraint_aware.control.self_check import MIN_FORCE as SELF_CHECK_FORCE
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.geometry import in_plane
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -51,7 +52,6 @@ CASES = (
     ("door-opening", 15.0),
     ("handle-rotating", 15.0),
 )
-SELF_CHECK_FORCE = 2.0  # [N] control.self_check.MIN_FORCE
 
 
 class Recorder:

@@ -516,7 +516,7 @@ class Holds(FixedDirection):
 
 def test_a_hold_does_not_hide_a_flipped_sign() -> None:
     """The reading after a hold and the one after the hand starts again are compared with the
-    deflection only (SELF_CHECK_SETTLE_MOVES); a flipped sign is still caught, within the
+    deflection only (control.self_check.SETTLE_MOVES); a flipped sign is still caught, within the
     self-check's moves, and a healthy run passes."""
     cfg = ExecutorConfig()
     rec = Executor(Flipped(), Holds(lambda call: call == 2), cfg).run(d0(30))
@@ -534,7 +534,7 @@ def test_a_hold_does_not_hide_a_flipped_sign() -> None:
 
 def test_holds_on_every_other_step_do_not_hide_a_flipped_sign() -> None:
     """Every reading then follows a hold or a restart, which the F.d test and the half-lag
-    confirmation skip (SELF_CHECK_SETTLE_MOVES); the cosine with the deflection still takes
+    confirmation skip (control.self_check.SETTLE_MOVES); the cosine with the deflection still takes
     them, and a flipped sign reads ~ -1 there whatever the hand does."""
     every_other = Holds(lambda call: call % 2 == 0)
     rec = Executor(Flipped(), every_other, ExecutorConfig(limits=LimitsConfig(max_steps=40))).run(

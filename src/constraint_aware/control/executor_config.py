@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal
+from typing import ClassVar, Literal
 
 from constraint_aware.deadband import MIN_THRESHOLD
 from constraint_aware.errors import (
@@ -304,11 +304,6 @@ class ExecutorConfig:
             top[group] = dataclasses.replace(getattr(self, group), **items)
         return dataclasses.replace(self, **top)  # type: ignore[arg-type]
 
-    def to_dict(self) -> dict[str, object]:
-        """The configuration as nested JSON-ready values (tuples become lists)."""
-        out: dict[str, object] = _listed(dataclasses.asdict(self))
-        return out
-
 
 def override_keys() -> list[str]:
     """Every key `ExecutorConfig.with_overrides` accepts: top-level fields, and
@@ -317,11 +312,3 @@ def override_keys() -> list[str]:
     for group, cls in GROUPS.items():
         keys += [f"{group}__{f.name}" for f in dataclasses.fields(cls)]
     return keys
-
-
-def _listed(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {k: _listed(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_listed(v) for v in value]
-    return value
