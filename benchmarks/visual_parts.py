@@ -9,14 +9,13 @@ the hinge side (its placement today, azimuth +90 deg) and on the free edge's sid
 and (3) Jaco drawer and door runs with the parts solid for the arm (sim.objects.
 ARM_CONTACT_BIT) against the visual parts. The Jaco runs use the default policy and the
 classical controller from 10 deg, the executor's start-of-run self-check off (it stops most
-arm runs before they move: issue 13's notes). Writes JSON, prints a table.
+arm runs before they move). Writes JSON, prints a table.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import functools
 import json
 import math
@@ -108,7 +107,7 @@ def jaco_run(
             deepest[key] = max(deepest.get(key, 0.0), 1000 * found.depth)
 
     note()
-    cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
+    cfg = executor_config(task).with_overrides(self_check__steps=0)
     assert cfg.workplane_normal is not None
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     d0 = rotate_about(sim.admissible_direction(), normal, math.radians(10.0))

@@ -365,7 +365,7 @@ def test_bench_force_flag_reaches_run_bench(
 
 def test_run_set_reaches_task_and_executor_fields(tmp_path: Path) -> None:
     out = cap(
-        "run", "drawer-opening", "--set", "force_limit=5", "--set", "executor.max_steps=3",
+        "run", "drawer-opening", "--set", "force_limit=5", "--set", "executor.limits.max_steps=3",
         "--json", str(tmp_path / "r.json"),
     )  # fmt: skip
     assert out.returncode == 1, out.stderr  # a 5 N limit stops the run
@@ -373,7 +373,7 @@ def test_run_set_reaches_task_and_executor_fields(tmp_path: Path) -> None:
     assert data["outcome"] == "force_limit" and data["label"]["force_limit_N"] == 5
     out = cap("run", "drawer-opening", "--set", "object.nosuch=1")
     assert out.returncode == 2 and "object.mass" in out.stderr  # lists the valid keys
-    out = cap("run", "drawer-opening", "--set", "executor.max_steps=2", "--offset", "0")
+    out = cap("run", "drawer-opening", "--set", "executor.limits.max_steps=2", "--offset", "0")
     assert out.returncode == 1 and "timeout" in out.stdout
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-import constraint_aware.control.executor as executor_module
+import constraint_aware.control.guards as guards_module
 from constraint_aware.bench.faults import FaultyRobot
 from constraint_aware.bench.sweep import suite_specs
 from constraint_aware.control.controllers import DirectionController
@@ -141,8 +141,8 @@ def test_grasp_holds_under_a_scripted_pull(
     # the subject is the grasp: the executor's start-of-run self-check and arm-deflection stop
     # assume a quasi-static arm (F = k x deflection), which the lagging Jaco is not (README,
     # "Second embodiment"; its lag is `tracking_time_constant`)
-    monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
-    cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
+    monkeypatch.setattr(guards_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
+    cfg = executor_config(task).with_overrides(self_check__steps=0)
     record = Executor(sim, true_direction(sim), cfg, monitor=sim).run(sim.admissible_direction())
     assert record.outcome == "success", record.reason
     assert record.slip_m < 0.015
@@ -195,9 +195,9 @@ def test_paper_tasks_with_the_policy_on_the_arm(
     spec = RunSpec(task, robot="jaco", controller="policy", offset_deg=PAPER_OFFSETS[task])
     # without the executor's two guards that assume a quasi-static arm (F = k x deflection):
     # the start-of-run self-check and the arm-deflection stop (with them: the test below)
-    monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
+    monkeypatch.setattr(guards_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
     policy = ConstraintAwarePolicy.load(policy_name)
-    record, sim = run(spec, policy=policy, executor_overrides={"self_check_steps": 0})
+    record, sim = run(spec, policy=policy, executor_overrides={"self_check__steps": 0})
     assert record.outcome == "success", record.reason
     assert sim.translational_stiffness == 1000.0
 
@@ -229,15 +229,14 @@ def test_the_self_check_lets_healthy_plate_runs_on_the_arm_through() -> None:
 
 @pytest.mark.parametrize("fault", ["flipped_sign", "rotated_90"])
 def test_the_self_check_still_stops_a_wrong_convention_on_the_arms_plate(fault: str) -> None:
-    hold = ExecutorConfig().offset_samples - 1
+    hold = ExecutorConfig().timing.offset_samples - 1
     spec = RunSpec("plate-sliding", robot="jaco", controller="policy", offset_deg=-30.0, seed=1)
     record, _ = run(spec, wrap=lambda sim: FaultyRobot(sim, fault, hold))
-    # stopped within the self-check's moves: by it, by the force limit, or (the rotated frame
-    # since stop 29: its first reading, scaled by the start's travel scaling, turns d faster
-    # off the path) by the arm's deflection disagreeing with the sensor ("or the sensor reads
-    # low"), at step 3 and 11.3 N where the self-check stopped it at step 5 and 13.3 N
+    # stopped within the self-check's moves: by it, by the force limit, or (the rotated frame:
+    # its first reading, scaled by the start's travel scaling, turns d faster off the path) by
+    # the arm's deflection disagreeing with the sensor ("or the sensor reads low")
     assert record.outcome in ("sensor_convention", "force_limit", "not_following"), record.reason
-    assert record.n_steps <= ExecutorConfig().self_check_steps
+    assert record.n_steps <= ExecutorConfig().self_check.steps
 
 
 def test_robot_specs_and_variants() -> None:

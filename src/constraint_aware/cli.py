@@ -372,8 +372,9 @@ def _run_parser(p: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="repeatable; any task or executor field: FIELD (TaskConfig, e.g. force_limit=40), "
-        "object.FIELD, hand.FIELD, executor.FIELD (e.g. executor.threshold=1); "
-        "an unknown key lists the valid ones",
+        "object.FIELD, hand.FIELD, executor.FIELD or executor.GROUP.FIELD (ExecutorConfig, "
+        "e.g. executor.threshold=1, executor.limits.force_limit=40, "
+        "executor.guards.predictive_force=false); an unknown key lists the valid ones",
     )
     _add_policy(p)
     out = p.add_argument_group("outputs (checked before the run starts)")

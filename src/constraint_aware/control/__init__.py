@@ -11,10 +11,16 @@ from constraint_aware.control.controllers import (
     DirectionController,
     make_controller,
 )
-from constraint_aware.control.executor import (
-    Executor,
+from constraint_aware.control.executor import Executor, command_jump_bound
+from constraint_aware.control.executor_config import (
     ExecutorConfig,
-    command_jump_bound,
+    GoalConfig,
+    GuardsConfig,
+    LimitsConfig,
+    RobotOverrides,
+    SelfCheckConfig,
+    TimingConfig,
+    TorquePolicyConfig,
     max_grasp_play,
 )
 from constraint_aware.control.probe import (
@@ -26,10 +32,13 @@ from constraint_aware.control.probe import (
 )
 from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord, StepRecord
 from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench, reported_stiffness
+from constraint_aware.control.run_inputs import INPUT_NAMES, INPUT_SOURCES
 from constraint_aware.control.settings import Settings, parse_settings
 
 __all__ = [
     "CONTROLLERS",
+    "INPUT_NAMES",
+    "INPUT_SOURCES",
     "OUTCOMES",
     "OUTCOME_MEANINGS",
     "POLICY_CONTROLLERS",
@@ -38,14 +47,21 @@ __all__ = [
     "DirectionController",
     "Executor",
     "ExecutorConfig",
+    "GoalConfig",
+    "GuardsConfig",
+    "LimitsConfig",
     "Pose",
     "ProbeConfig",
     "ProbeResult",
     "Robot",
+    "RobotOverrides",
     "RunRecord",
+    "SelfCheckConfig",
     "Settings",
     "StepRecord",
     "TaskMonitor",
+    "TimingConfig",
+    "TorquePolicyConfig",
     "Wrench",
     "command_jump_bound",
     "make_controller",

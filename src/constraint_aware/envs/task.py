@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
@@ -94,7 +93,8 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         randomize: draw friction, mass and damping per episode (sim.tasks.randomized);
         sensor_noise: [N] std of the force reading per axis (default 0.1, as `cap run`);
         torque_policy: None (on exactly for fixed-orientation grasps), True or False;
-        executor: ExecutorConfig fields to override (e.g. {"threshold": 2.0});
+        executor: ExecutorConfig fields to override, as `ExecutorConfig.with_overrides` keys
+            (e.g. {"threshold": 2.0, "limits__max_steps": 80});
         robot: the embodiment, a robot spec (sim.embodiment): "hook-hand" (default), "jaco"
             (the Kinova Jaco arm and hand), optionally with variants,
             "jaco:stiffness=5000,period=0.05"; an unknown name or variant fails at
@@ -144,8 +144,8 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self.sensor_noise = float(sensor_noise)
         self.torque_policy = torque_policy
         self.executor_overrides = dict(executor or {})
-        self.executor_config = dataclasses.replace(
-            executor_config(self._base, torque_policy), **self.executor_overrides
+        self.executor_config = executor_config(self._base, torque_policy).with_overrides(
+            **self.executor_overrides
         )  # built once here so that invalid overrides fail at construction
         self.render_mode = render_mode
         self.width, self.height = width, height
@@ -178,15 +178,12 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         cfg = (
             self.executor_config
             if not self.randomize
-            else dataclasses.replace(
-                executor_config(task, self.torque_policy), **self.executor_overrides
-            )
+            else executor_config(task, self.torque_policy).with_overrides(**self.executor_overrides)
         )
-        assert cfg.workplane_normal is not None
+        # d0 turns about the executor's workplane normal; in 3-D motion (None) about the task's
+        axis = task.workplane_normal if cfg.workplane_normal is None else cfg.workplane_normal
         offset = self._draw_offset(rng)
-        d0 = rotate_about(
-            sim.admissible_direction(), np.asarray(cfg.workplane_normal), math.radians(offset)
-        )
+        d0 = rotate_about(sim.admissible_direction(), np.asarray(axis), math.radians(offset))
         self._close_renderer()
         self.sim = sim
         self._controller = _ActionController()
@@ -196,7 +193,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "controller": self._controller.name,
             "offset_deg": offset,
             "randomized": self.randomize,
-            "torque_policy": cfg.torque_policy,
+            "torque_policy": cfg.torque_policy.enabled,
             "sensor_noise_N": self.sensor_noise,
             "success_progress": task.success_progress,
             "constraint_type": task.constraint_type,
@@ -206,7 +203,9 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         }
         self._record = self.executor.start(d0, label)
         # F_d sampling holds the hand; it ends with the first move (along d0)
-        for _ in range(cfg.offset_samples + cfg.max_steps):  # bounded: the executor stops
+        for _ in range(
+            cfg.timing.offset_samples + cfg.limits.max_steps
+        ):  # bounded: the executor stops
             if self._controller.calls > 0:
                 break
             out = self.executor.step(sim.read_wrench(), sim.read_pose())
@@ -239,7 +238,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         force_norm = float(np.linalg.norm(obs["wrench"][:3]))
         reward = (self.sim.progress() - before) / self.sim.task.success_progress
         if math.isfinite(force_norm):
-            reward -= force_norm / cfg.force_limit / cfg.max_steps
+            reward -= force_norm / cfg.limits.force_limit / cfg.limits.max_steps
         finished = record.finished
         truncated = finished and record.outcome == TIMEOUT
         return obs, float(reward), finished and not truncated, truncated, self._info()
