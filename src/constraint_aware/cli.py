@@ -176,7 +176,7 @@ def _add_robot(
         default=DEFAULT_ROBOT if default is None else default,
         metavar="NAME[:KEY=VALUE,...]",
         help=f"the embodiment {what} (default: {DEFAULT_ROBOT}): {', '.join(EMBODIMENTS)}, "
-        f"optionally with variants ({variant_ranges()}), e.g. jaco:stiffness=2000,period=0.05",
+        f"optionally with variants ({variant_ranges()}), e.g. jaco:stiffness=2000,period=0.2",
     )
 
 

@@ -61,7 +61,7 @@ class BenchConfig:
 
 def robot_variant(robot: str, **params: float) -> str:
     """The robot spec `robot` with variant parameters set (`ROBOT_PARAMS` keys), as text:
-    robot_variant("jaco:period=0.05", stiffness=500) == "jaco:stiffness=500,period=0.05"."""
+    robot_variant("jaco:period=0.2", stiffness=800) == "jaco:stiffness=800,period=0.2"."""
     spec = parse_robot(robot)
     for key in params:
         if key not in ROBOT_PARAMS:

@@ -110,7 +110,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         executor: ExecutorConfig fields to override (e.g. {"threshold": 2.0});
         robot: the embodiment, a robot spec (sim.embodiment): "hook-hand" (default), "jaco"
             (the Kinova Jaco arm and hand), optionally with variants,
-            "jaco:stiffness=2000,period=0.05"; an unknown name or variant fails at
+            "jaco:stiffness=2000,period=0.2"; an unknown name or variant fails at
             construction, naming the valid ones;
         render_mode: None or "rgb_array" (offscreen MuJoCo, sim.render.SceneRenderer),
             width (1-640) and height (1-480) [px] of the frames.
