@@ -167,7 +167,10 @@ def remove_gross_glitches(demo: Demonstration) -> UnitCheck:
     for a, b in long:
         keep[a:b] = True
     for (a0, b0), (a1, _b1) in itertools.pairwise(long):
-        gap = float(np.linalg.norm(pos[a1] - pos[b0 - 1]))
+        # the path's ends on either side, as medians: robust to a glitch at a segment's edge
+        before_end = np.median(pos[max(a0, b0 - MAX_GLITCH_RUN) : b0], axis=0)
+        after_start = np.median(pos[a1 : a1 + MAX_GLITCH_RUN], axis=0)
+        gap = float(np.linalg.norm(after_start - before_end))
         near = max(float(typical[b0 - 2]) if b0 >= 2 else 0.0, float(typical[a1]))
         if gap <= JUMP_RATIO * max(near, 1e-12) * (a1 - b0 + 1):
             continue  # back on the path: what lay between was a glitch
