@@ -132,15 +132,16 @@ def _typical_steps(steps: FloatArray) -> FloatArray:
     return np.where(np.isnan(typical), 0.0, typical)
 
 
-def _segments(t: FloatArray, pos: FloatArray) -> tuple[list[tuple[int, int]], FloatArray]:
-    """The path cut at its jumps: [(first, stop)] sample ranges, and the typical steps."""
+def _segments(pos: FloatArray) -> tuple[list[tuple[int, int]], FloatArray, FloatArray]:
+    """The path cut at its jumps: [(first, stop)] sample ranges, the steps between samples
+    and the typical step around each."""
     steps = np.linalg.norm(np.diff(pos, axis=0), axis=1)
     typical = _typical_steps(steps)
     spread = np.percentile(pos, 95, axis=0) - np.percentile(pos, 5, axis=0)
     floor = 1e-3 * float(np.linalg.norm(spread)) + 1e-12
     jumps = np.flatnonzero(steps > JUMP_RATIO * np.maximum(typical, floor))
     bounds = [0, *(int(j) + 1 for j in jumps), len(pos)]
-    return [(a, b) for a, b in itertools.pairwise(bounds)], typical
+    return [(a, b) for a, b in itertools.pairwise(bounds)], steps, typical
 
 
 def _unit_pair(ratio: float) -> tuple[str, str] | None:
@@ -156,7 +157,7 @@ def remove_gross_glitches(demo: Demonstration) -> UnitCheck:
     """Samples kept after removing gross glitches (module docstring); raises UnitError for
     mixed units and DemoError for a jump that does not come back."""
     t, pos = demo.t, demo.position
-    segments, typical = _segments(t, pos)
+    segments, steps, typical = _segments(pos)
     long = [(a, b) for a, b in segments if b - a > MAX_GLITCH_RUN]
     if not long:
         raise DemoError(
@@ -178,6 +179,15 @@ def remove_gross_glitches(demo: Demonstration) -> UnitCheck:
         after = float(np.median(np.linalg.norm(pos[a1:_b1], axis=1)))
         ratio = max(before, after) / max(min(before, after), 1e-12)
         pair = _unit_pair(ratio)
+        # a change of unit scales the motion too: the steps grow with the positions (a tracker
+        # that jumps to another place keeps its step size)
+        step_ratio = float(np.median(steps[a1 : _b1 - 1]) + 1e-12) / float(
+            np.median(steps[a0 : b0 - 1]) + 1e-12
+        )
+        if pair is not None and (step_ratio if after > before else 1 / step_ratio) < math.sqrt(
+            UNITS[pair[1]] / UNITS[pair[0]]
+        ):
+            pair = None
         where = f"samples {a0}-{b0 - 1} and {a1}-{_b1 - 1}"
         if pair is not None:
             raise UnitError(
