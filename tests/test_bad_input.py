@@ -321,6 +321,30 @@ def test_act_batch_validates_its_batch() -> None:
     assert POLICY.act_batch(np.zeros((2, width))).shape == (2, 3)
 
 
+def test_policy_files_are_bounded_before_they_are_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import shutil
+
+    import constraint_aware.policy as policy_module
+    from constraint_aware.policy import shipped_policy_path
+
+    source = shipped_policy_path()
+    for suffix in (".npz", ".json"):
+        shutil.copy(source.with_suffix(suffix), tmp_path / f"p{suffix}")
+    monkeypatch.setattr(policy_module, "MAX_WEIGHT_BYTES", 1000)
+    err = cap_error(capsys, "eval", "--policy", str(tmp_path / "p.npz"))
+    assert "bytes of weights; at most 1,000" in err
+    monkeypatch.setattr(policy_module, "MAX_CARD_BYTES", 1000)
+    err = cap_error(
+        capsys, "export-onnx", "--policy", str(tmp_path / "p.npz"), str(tmp_path / "x.onnx")
+    )
+    assert "a card has at most 1,000" in err
+    (tmp_path / "p.json").write_bytes(bytes(range(256)))
+    monkeypatch.setattr(policy_module, "MAX_CARD_BYTES", 2**20)
+    assert "not UTF-8" in cap_error(capsys, "eval", "--policy", str(tmp_path / "p.npz"))
+
+
 # --- robot variants ----------------------------------------------------------------------------
 @pytest.mark.parametrize(
     ("spec", "message"),

@@ -70,6 +70,10 @@ DEFAULT_POLICY_NAME = "default"
 DEFAULT_THRESHOLD = MIN_THRESHOLD
 _MAX_LAYERS = 16
 _MAX_WIDTH = 4096
+#: A policy's files are read as untrusted input: the card and the weights (uncompressed) are
+#: bounded before they are read. The shipped networks take under 1 MB.
+MAX_CARD_BYTES = 16 * 2**20
+MAX_WEIGHT_BYTES = 256 * 2**20
 
 
 def dead_band_card() -> dict[str, Any]:
@@ -305,6 +309,12 @@ class ConstraintAwarePolicy:
         n = card["n_layers"]
         layers: list[tuple[FloatArray, FloatArray]] = []
         try:
+            with zipfile.ZipFile(npz_path) as archive:  # sizes before anything is inflated
+                total = sum(info.file_size for info in archive.infolist())
+            if total > MAX_WEIGHT_BYTES:
+                raise PolicyFileError(
+                    f"{npz_path}: {total:,} bytes of weights; at most {MAX_WEIGHT_BYTES:,}"
+                )
             with np.load(npz_path, allow_pickle=False) as data:
                 for i in range(n):
                     for key in (f"w{i}", f"b{i}"):
@@ -482,6 +492,9 @@ def _finite_norm(vector: FloatArray, name: str) -> FloatArray:
 
 def _read_card(path: Path) -> dict[str, Any]:
     """The JSON card, checked field by field; PolicyFileError names the file and field."""
+    size = path.stat().st_size
+    if size > MAX_CARD_BYTES:
+        raise PolicyFileError(f"{path}: {size:,} bytes; a card has at most {MAX_CARD_BYTES:,}")
     try:
         text = path.read_bytes().decode("utf-8")
     except UnicodeDecodeError as exc:
