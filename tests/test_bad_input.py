@@ -248,7 +248,7 @@ def test_a_closing_door_said_to_open_is_named_with_orientations() -> None:
         ({"sensor_noise": -1.0}, "TaskEnv.sensor_noise"),
         ({"width": -5}, "TaskEnv.width"),
         ({"height": 2.5}, "TaskEnv.height"),
-        ({"width": 4000}, "TaskEnv.width x height"),
+        ({"width": 4000}, "TaskEnv.width"),
         ({"randomize": "yes"}, "TaskEnv.randomize"),
         ({"executor": [("threshold", 1.0)]}, "TaskEnv.executor"),
         ({"robot": 3}, "TaskEnv.robot"),

@@ -157,12 +157,8 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if not isinstance(robot, str):
             raise ConfigError(n + "robot", robot, "a robot spec such as 'jaco:stiffness=2000'")
         parse_robot(robot)  # UnknownNameError / InvalidInputError naming the valid ones
-        self.width = check_int(n + "width", width, low=1)
-        self.height = check_int(n + "height", height, low=1)
-        if self.width > MAX_WIDTH or self.height > MAX_HEIGHT:
-            raise ConfigError(
-                n + "width x height", (width, height), f"at most {MAX_WIDTH} x {MAX_HEIGHT} [px]"
-            )
+        self.width = _check_pixels(n + "width", width, MAX_WIDTH)
+        self.height = _check_pixels(n + "height", height, MAX_HEIGHT)
         if executor is not None and not isinstance(executor, dict):
             raise ConfigError(n + "executor", executor, "a dict of ExecutorConfig fields")
         self.executor_overrides = dict(executor or {})
@@ -345,6 +341,18 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
 def _preset(task: str) -> TaskConfig:
     return task_config(task)
+
+
+def _check_pixels(field: str, value: object, high: int) -> int:
+    """A frame size [px]: an integer in [1, high] (the offscreen buffer's size)."""
+    valid = f"an integer in [1, {high}] [px]"
+    try:
+        pixels = check_int(field, value, low=1)
+    except ConfigError:
+        raise ConfigError(field, value, valid) from None
+    if pixels > high:
+        raise ConfigError(field, value, valid)
+    return pixels
 
 
 def _check_offset(value: object) -> float | tuple[float, float]:
