@@ -197,7 +197,7 @@ class DirectionUpdater:
         blocked = step_force is None or force_norm >= step_force
         # the network's action as it is (the paper's rule) without n, or for a blocked step
         a = (
-            p._forward(obs[None, :])[0]
+            p.act_batch(obs[None, :])[0]
             if normal is None or blocked
             else mirror_average(p, obs, d, normal)
         )
@@ -225,7 +225,7 @@ def mirror_average(
     m = np.cross(normal, direction)
     norm = float(np.linalg.norm(m))
     if norm < 1e-9:  # d along n: no in-plane side to mirror
-        return policy._forward(obs[None, :])[0]
+        return policy.act_batch(obs[None, :])[0]
     m = m / norm
     mirror = np.eye(3) - 2.0 * np.outer(m, m)
     mirrored = obs.copy()
@@ -233,7 +233,7 @@ def mirror_average(
     for start, name in enumerate(layout):  # each 3-vector block: names *_x, *_y, *_z
         if name.endswith("_x"):
             mirrored[start : start + 3] = mirror @ obs[start : start + 3]
-    a, a_mirrored = policy._forward(np.stack([obs, mirrored]))
+    a, a_mirrored = policy.act_batch(np.stack([obs, mirrored]))
     return np.asarray(0.5 * (a + mirror @ a_mirrored))
 
 
