@@ -200,8 +200,10 @@ def test_eval_writes_json(tmp_path: Path) -> None:
     out = cap("eval", "--episodes", "500", "--json", str(tmp_path / "e.json"))
     assert out.returncode == 0, out.stderr
     data = json.loads((tmp_path / "e.json").read_text())
-    assert set(data) == {"noop", "projection", "mu_agnostic", "oracle", "policy"}
-    assert data["policy"]["episodes"] == 500
+    assert set(data) == {"training_environment", "standard_evaluation", "card_standard_evaluation"}
+    for where in ("training_environment", "standard_evaluation"):
+        assert set(data[where]) == {"noop", "projection", "mu_agnostic", "oracle", "policy"}
+        assert data[where]["policy"]["episodes"] == 500
 
 
 def test_eval_missing_policy_is_a_clear_error(tmp_path: Path) -> None:
@@ -221,7 +223,10 @@ def test_eval_policy_flag_evaluates_that_policy(tmp_path: Path) -> None:
     paper = ConstraintAwarePolicy.load("paper")
     config = EnvConfig.from_dict(paper.card.get("env_config", {}))
     expected = evaluate(lambda obs, _f: paper.act_batch(obs), config, episodes=300, seed=12345)
-    assert json.loads((tmp_path / "e.json").read_text())["policy"] == strict(expected.to_dict())
+    data = json.loads((tmp_path / "e.json").read_text())
+    assert data["training_environment"]["policy"] == strict(expected.to_dict())
+    # the paper's policy was trained in the standard environment: one evaluation is both
+    assert data["standard_evaluation"] == data["training_environment"]
     out = cap("eval", "--policy", "nope")
     assert out.returncode == 2 and "valid names: default, paper" in out.stderr
 

@@ -241,8 +241,8 @@ def test_the_self_check_still_stops_a_wrong_convention_on_the_arms_plate(fault: 
 
 def test_robot_specs_and_variants() -> None:
     assert set(EMBODIMENTS) == {"hook-hand", "jaco"}
-    spec = parse_robot("jaco:stiffness=5000,period=0.05")
-    assert (spec.name, spec.stiffness, spec.period) == ("jaco", 5000.0, 0.05)
+    spec = parse_robot("jaco:stiffness=2000,period=0.1")
+    assert (spec.name, spec.stiffness, spec.period) == ("jaco", 2000.0, 0.1)
     sim = make_embodiment("hook-hand:stiffness=4000,period=0.2", task_config("drawer-opening"))
     assert sim.translational_stiffness == 4000.0 and sim.control_period == 0.2
     with pytest.raises(UnknownNameError, match="hook-hand, jaco"):
@@ -280,8 +280,11 @@ def test_embodiment_experiment_types_and_report_table() -> None:
     assert "| plate-sliding | policy |" in text
 
 
-@pytest.mark.parametrize("robot", ["hook-hand", "jaco"])
-@pytest.mark.parametrize("period", [0.02, 0.05, 0.1, 0.2])
+@pytest.mark.parametrize(
+    ("robot", "period"),
+    [("hook-hand", 0.02), ("hook-hand", 0.05), ("jaco", 0.06), ("hook-hand", 0.1), ("jaco", 0.1),
+     ("hook-hand", 0.2), ("jaco", 0.2)],
+)  # fmt: skip
 def test_a_control_period_lasts_exactly_its_nominal_time(robot: str, period: float) -> None:
     sim = make_embodiment(f"{robot}:period={period}", task_config("drawer-opening"))
     sim.reset()
@@ -301,7 +304,7 @@ def test_a_control_period_lasts_exactly_its_nominal_time(robot: str, period: flo
 def test_a_period_that_is_not_a_whole_number_of_steps_is_refused(period: float) -> None:
     if period >= 0.02:  # below, the spec's range check refuses it first
         with pytest.raises(InvalidInputError, match="control_period"):
-            parse_robot(f"jaco:period={period}")
+            parse_robot(f"hook-hand:period={period}")
     with pytest.raises(InvalidInputError, match="control_period"):
         JacoSim(task_config("drawer-opening"), control_period=period)
 
@@ -346,7 +349,7 @@ def test_tracking_time_constant_matches_a_measured_step_response(robot: str) -> 
 
 def test_tracking_time_constant_is_fixed_per_episode_and_follows_the_gains() -> None:
     taus = []
-    for stiffness in (1000, 5000):
+    for stiffness in (1000, 4000):
         sim = make_embodiment(f"jaco:stiffness={stiffness}", task_config("drawer-opening"))
         sim.reset()
         before = sim.data.time
@@ -357,7 +360,7 @@ def test_tracking_time_constant_is_fixed_per_episode_and_follows_the_gains() -> 
     assert 0.05 < taus[1] < taus[0] < 1.0
 
 
-@pytest.mark.parametrize("stiffness", [500, 100000])
+@pytest.mark.parametrize("stiffness", [700, 4000])
 def test_the_arm_rests_stably_at_the_ends_of_the_stiffness_range(stiffness: int) -> None:
     # the OSC runs at 250 Hz (OscConfig.control_substeps): the stiffest variant must not ring
     sim = make_embodiment(f"jaco:stiffness={stiffness}", task_config("drawer-opening"))
