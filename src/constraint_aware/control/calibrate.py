@@ -18,8 +18,9 @@ The phases (one reading per control period throughout):
    the push) is below `contact_force` each stair is at most `free_step`, so that an object
    met without warning adds at most max_stiffness x free_step; once the force rises the
    stairs are sized from its measured slope. The push ends when
-   - |dF| reaches `contact_force`: blocked. That stair is level A; one more stair, sized
-     from the slope to reach `push_force` and held a period, is level B;
+   - |dF| reaches `contact_force`: blocked. That stair, held a period, is level A; one more
+     stair, sized from the slope to add push_force - contact_force and held a period, is
+     level B;
    - the hand has followed the setpoint `free_travel` with |dF| below `contact_force`: free
      (the object's own motion, or play in the grasp);
    - the setpoint reaches `travel_limit`: soft (neither).
@@ -94,9 +95,10 @@ __all__ = ["CalibrationConfig", "calibrate"]
 #: Identical wrench samples in a row that stop the calibration (a stale driver).
 STALE_SAMPLES = 3
 #: A level is settled when the hand moved less than this share of the push's depth over the
-#: period before its reading (control.probe's settle tolerance); the hand has settled at the
-#: start when it moved less than this share of free_travel in a period.
-SETTLE_SHARE = 0.02
+#: period it was held (a grasp that yields under the push still creeps by a few hundredths);
+#: the hand has settled at the start when it moved less than this share of free_travel in a
+#: period.
+SETTLE_SHARE = 0.05
 #: Periods at most to wait after a push for the hand to settle at the start.
 SETTLE_PERIODS = 2
 #: Below this sigma [N] a force reading is implausibly quiet at rest (frozen, or noise-free).
@@ -123,35 +125,24 @@ MIN_PUSH_PERIODS = 6
 
 @dataclass(frozen=True)
 class CalibrationConfig:
-    """How the calibration pushes. Validated at construction (errors name the field).
+    """How the calibration pushes (module docstring). Units in brackets. Validated at
+    construction (ConfigError names the field and its valid range)."""
 
-    Attributes:
-        rest_periods: readings at rest, one per period, for the force offset and noise (>= 3;
-            the noise's relative standard error is about 1 / sqrt(6 (n - 2))).
-        force_limit: [N] |F - F_rest| above this stops the calibration; keep it below the
-            object's limit and the executor's.
-        contact_force: [N] level A: a push has met the object when its |dF| reaches this.
-        push_force: [N] level B: the force the second stiffness level aims for (> A).
-        max_stiffness: [N/m] the stiffest arm the pushes are sized for: while the force is
-            below contact_force the setpoint moves at most free_step per period.
-        first_push: [m] the first stair of each push.
-        free_travel: [m] a direction where the hand follows the setpoint this far with the
-            force below contact_force is free.
-        travel_limit: [m] the furthest the setpoint ever moves from where it started.
-        return_periods: periods to bring the setpoint back from a free push.
-        max_periods: the calibration's budget of control periods (a named stop beyond it).
-    """
-
-    rest_periods: int = 12
-    force_limit: float = 20.0
-    contact_force: float = 3.0
-    push_force: float = 6.0
-    max_stiffness: float = 20_000.0
-    first_push: float = 4e-4
-    free_travel: float = 0.003
-    travel_limit: float = 0.02
-    return_periods: int = 2
-    max_periods: int = 50
+    rest_periods: int = 12  # readings at rest, one per period, for the force offset and the
+    # noise (>= 3; sigma's relative standard error is about 1 / sqrt(6 (n - 2)))
+    force_limit: float = 20.0  # [N] |F - F_rest| above this stops the calibration; keep it
+    # below the object's limit and the executor's
+    contact_force: float = 3.0  # [N] level A: a push has met the object at this |dF|
+    push_force: float = 6.0  # [N] level B aims push_force - contact_force above level A
+    max_stiffness: float = 20_000.0  # [N/m] the stiffest arm the pushes are sized for: until
+    # a push has measured the arm, a stair moves at most (force_limit - contact_force) /
+    # max_stiffness while the force is low
+    first_push: float = 4e-4  # [m] the first stair of each push
+    free_travel: float = 0.003  # [m] a direction where the hand follows the setpoint this
+    # far with |dF| below contact_force is free
+    travel_limit: float = 0.02  # [m] the furthest the setpoint ever moves from the start
+    return_periods: int = 2  # periods to bring the setpoint back from a free push
+    max_periods: int = 50  # the calibration's budget of control periods (a named stop)
 
     def __post_init__(self) -> None:
         n = "CalibrationConfig."
@@ -178,8 +169,8 @@ class CalibrationConfig:
 
     @property
     def free_step(self) -> float:
-        """[m] the setpoint's largest move per period while |dF| is below contact_force:
-        (force_limit - contact_force) / max_stiffness."""
+        """[m] the largest stair while |dF| is below contact_force, before the arm has been
+        measured: (force_limit - contact_force) / max_stiffness."""
         return (self.force_limit - self.contact_force) / self.max_stiffness
 
 
@@ -214,6 +205,8 @@ class Push:
     depth_b: float = 0.0  # [m]
     settled_a: bool = False
     settled_b: bool = False
+    before_a: Reading | None = None  # the reading a period before level A (its velocity)
+    before_b: Reading | None = None
     back: list[Reading] = field(default_factory=list)  # the way back and the settling
 
     def change(self, reading: Reading) -> tuple[float, float]:
@@ -424,9 +417,15 @@ def _run(session: _Session, normal: FloatArray | None, profile: RobotProfile) ->
     rest = _rest(session, profile)
     pushes = _pushes(session, normal, rest, profile)
     profile.notes.extend(dict.fromkeys(session.notes))
-    _stiffness_and_play(profile, pushes, normal, cfg)
+    period = robot.control_period
+    _stiffness(profile, pushes, normal, cfg, period)
+    _time_constant(profile, pushes, period)
+    tau = profile.value("tracking_time_constant")
+    if tau is not None:  # once more, the hand's damping removed from the stretch
+        _stiffness(profile, pushes, normal, cfg, period, tau)
+        _time_constant(profile, pushes, period)
+    _play(profile, pushes, normal, cfg)
     _convention(profile, pushes, normal, cfg)
-    _time_constant(profile, pushes, robot.control_period)
     if k_report is not None:
         profile.notes.append(f"the robot reports translational_stiffness {k_report:g} N/m")
     if tau_report is not None:
@@ -590,7 +589,7 @@ def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
     cfg = session.cfg
     reached = push.stairs[-1]
     held = session.step()
-    push.level_a, push.depth_a = held, depth
+    push.level_a, push.depth_a, push.before_a = held, depth, reached
     push.settled_a = _settled(reached, held, depth)
     if not level_b:
         return
@@ -608,7 +607,7 @@ def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
             return
         first = session.step(session.at(push.direction, depth_b))
         last = session.step()
-        push.level_b, push.depth_b = last, depth_b
+        push.level_b, push.depth_b, push.before_b = last, depth_b, first
         push.settled_b = _settled(first, last, depth_b)
         gained = push.change(last)[0] - push.change(held)[0]
         if gained >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
@@ -651,24 +650,46 @@ def _return(session: _Session, push: Push, ramp: bool) -> None:
 
 
 # --- phase 3: the quantities --------------------------------------------------------------
-def _stiffness_and_play(
-    profile: RobotProfile, pushes: list[Push], normal: FloatArray | None, cfg: CalibrationConfig
+def _stiffness(
+    profile: RobotProfile,
+    pushes: list[Push],
+    normal: FloatArray | None,
+    cfg: CalibrationConfig,
+    period: float,
+    tau: float | None = None,
 ) -> None:
+    """k from the levels of the blocked pushes; with the tracking time constant `tau` [s]
+    known, the part tau v of each stretch the hand's velocity v explains (the arm's damping,
+    where the object gives way under the push) is not counted as spring."""
     q = profile.quantities
     sigma = q["force_noise"].value or 0.0
     method = (
-        "blocked pushes: |F_B - F_A| / |stretch_B - stretch_A| between the reading at "
-        f"{cfg.contact_force:g} N and a held one near {cfg.push_force:g} N, in the workplane"
+        "blocked pushes: |F_B - F_A| / |stretch_B - stretch_A| between a held reading at "
+        f"{cfg.contact_force:g} N and one about {cfg.push_force - cfg.contact_force:g} N "
+        "above it, in the workplane"
     )
-    pairs = [p for p in pushes if p.level_a is not None and p.level_b is not None]
-    estimates = []
-    for p in pairs:
-        assert p.level_a is not None and p.level_b is not None
+    if tau is not None:
+        method += f"; stretch less tau v (tau {tau:.3g} s, v the hand's velocity)"
+
+    def spring(reading: Reading, before: Reading | None) -> FloatArray:
+        if tau is None or before is None:
+            return reading.stretch
+        return reading.stretch - tau * (reading.position - before.position) / period
+
+    estimates: list[tuple[float, float]] = []
+    moving: list[tuple[float, float]] = []
+    for p in pushes:
+        if p.level_a is None or p.level_b is None:
+            continue
         df = in_plane(p.level_b.force - p.level_a.force, normal)
-        ds = in_plane(p.level_b.stretch - p.level_a.stretch, normal)
+        ds = in_plane(spring(p.level_b, p.before_b) - spring(p.level_a, p.before_a), normal)
         f, s = float(np.linalg.norm(df)), float(np.linalg.norm(ds))
         if s > 1e-6 and f >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
-            estimates.append((f / s, f))
+            (estimates if p.settled_a and p.settled_b else moving).append((f / s, f))
+    if not estimates and moving:
+        # the object gave way under every push: the hand still moved at the readings
+        estimates = moving
+        method += "; the object gave way under the pushes (the hand still moved)"
     if estimates:
         values = [k for k, _ in estimates]
         value = float(np.mean(values))
@@ -686,11 +707,20 @@ def _stiffness_and_play(
         kinds = ", ".join(p.kind for p in pushes) or "none"
         q["stiffness"] = Measurement.unmeasured(
             "stiffness",
-            f"no push met {cfg.contact_force:g} N and then {cfg.push_force:g} N within the "
+            f"no push met {cfg.contact_force:g} N and then "
+            f"{cfg.push_force - cfg.contact_force:g} N more within the "
             f"{cfg.travel_limit * 1000:g} mm travel limit (pushes: {kinds}): nothing to push "
             "against",
             method,
         )
+
+
+def _play(
+    profile: RobotProfile, pushes: list[Push], normal: FloatArray | None, cfg: CalibrationConfig
+) -> None:
+    """The grasp's play from the blocked pushes' two levels (control.probe.grasp_play)."""
+    q = profile.quantities
+    pairs = [p for p in pushes if p.level_a is not None and p.level_b is not None]
     probe_cfg = _probe_config(cfg)
     shallow, deep = [], []
     for p in pairs:
