@@ -9,9 +9,7 @@ values. It never imports MuJoCo.
 
 The phases (one reading per control period throughout):
 
-1. Rest: `rest_periods` readings while holding. Their mean is the force offset; their spread
-   about a straight line (a drifting reading is not noise) is the per-axis noise sigma; the
-   dead band is `deadband.threshold_from_noise(sigma)`.
+1. Rest: `rest_periods` readings while holding: their mean is the force offset.
 2. Pushes in the workplane's directions (`control.probe.push_directions`: four in the plane,
    or the six world axes without one). Each push is a staircase: the setpoint moves further
    along the direction every period. While |dF| (the force change from the reading before
@@ -27,13 +25,20 @@ The phases (one reading per control period throughout):
    The setpoint then goes back to where it started, at once after a blocked push and in
    `return_periods` equal steps after a free one, and holds until the hand settles. The
    opposite of a direction is pushed only when that direction was blocked (a judged pair);
-   pushing stops once two blocked directions and a free one are known.
+   pushing stops once two blocked directions and a free one are known, or when the budget
+   (`max_periods`) would not leave room for another push. What is left of the budget is
+   spent holding at the start.
 3. The quantities:
+   - force noise sigma: the readings' spread about a straight line per axis (a drifting
+     reading is not noise), pooled over the rest before the pushes and the rest after them;
+     the dead band is `deadband.threshold_from_noise(sigma)`;
    - stiffness k: the arm is a spring at the tool point, F = F0 - k stretch with the
      stretch = commanded - measured position; F0 holds what the stretch does not explain (a
      grasp's preload, an arm's joint friction fed forward), so k = |F_B - F_A| /
      |stretch_B - stretch_A| (workplane components), not |F| / |stretch|; the mean over the
-     blocked pushes;
+     blocked pushes whose hand had settled at both levels. Where the object gave way under
+     every push (the hand still moved), from those, with tau v (the arm's damping at the
+     hand's velocity v) taken off each stretch;
    - grasp play: `control.probe.grasp_play` on the (A, B) pairs, the hand's travel against
      the force extrapolated to zero force;
    - sensor convention: `control.probe`'s own verdict on the level-A pushes (the median
@@ -142,7 +147,8 @@ class CalibrationConfig:
     # far with |dF| below contact_force is free
     travel_limit: float = 0.02  # [m] the furthest the setpoint ever moves from the start
     return_periods: int = 2  # periods to bring the setpoint back from a free push
-    max_periods: int = 50  # the calibration's budget of control periods (a named stop)
+    max_periods: int = 49  # the calibration's budget of control periods: the pushes stop
+    # short of it, what is left is spent at rest (more noise readings)
 
     def __post_init__(self) -> None:
         n = "CalibrationConfig."
@@ -415,8 +421,11 @@ def _run(session: _Session, normal: FloatArray | None, profile: RobotProfile) ->
     tau_report, tau_note = reported_time_constant(robot)
     profile.notes.extend(note for note in (k_note, tau_note) if note)
     rest = _rest(session, profile)
-    pushes = _pushes(session, normal, rest, profile)
+    pushes = _pushes(session, normal, rest[-1], profile)
     profile.notes.extend(dict.fromkeys(session.notes))
+    final = _final_rest(session)
+    if len(final) >= 3:
+        _noise(profile, [rest, final])
     period = robot.control_period
     _stiffness(profile, pushes, normal, cfg, period)
     _time_constant(profile, pushes, period)
@@ -433,26 +442,59 @@ def _run(session: _Session, normal: FloatArray | None, profile: RobotProfile) ->
 
 
 # --- phase 1: rest ------------------------------------------------------------------------
-def _rest(session: _Session, profile: RobotProfile) -> Reading:
-    """Hold for rest_periods readings: the force offset and the noise. Returns the last."""
+def _rest(session: _Session, profile: RobotProfile) -> list[Reading]:
+    """Hold for rest_periods readings: the force offset, and a first noise estimate (the
+    force from which a push has met something)."""
     n = session.cfg.rest_periods
     readings = [session.step() for _ in range(n)]
     forces = np.array([r.force for r in readings])
-    t = np.arange(n, dtype=float)
-    design = np.stack([np.ones(n), t - t.mean()], axis=1)  # a straight line per axis
-    coef, *_ = np.linalg.lstsq(design, forces, rcond=None)
-    residual = forces - design @ coef
-    dof = 3 * (n - 2)
-    sigma = float(np.sqrt(np.sum(residual**2) / dof))
+    residual = _about_a_line(forces)
+    sigma = float(np.sqrt(np.sum(residual**2) / (3 * (n - 2))))
+    offset = forces.mean(axis=0)
+    error = np.sqrt(np.sum(residual**2, axis=0) / (n - 2) / n)
+    for i, axis in enumerate("xyz"):
+        profile.quantities[f"force_offset_{axis}"] = Measurement(
+            float(offset[i]), float(error[i]), "N", f"mean of {n} readings at rest", n
+        )
+    session.rest_force = offset
+    # the force a push has met something at: well above the noise, well below contact
+    session.touch = max(TOUCH_SHARE * session.cfg.contact_force, TOUCH_SIGMAS * sigma)
+    _noise(profile, [readings])  # kept if the pushes stop early; refined after them
+    return readings
+
+
+def _final_rest(session: _Session) -> list[Reading]:
+    """Hold at the start for what is left of the budget (noise readings); the leading ones
+    while the hand still moved are dropped."""
+    readings = [session.step(session.home) for _ in range(max(session.remaining, 0))]
+    tolerance = SETTLE_SHARE * session.cfg.free_travel
+    while (
+        len(readings) >= 2
+        and np.linalg.norm(readings[1].position - readings[0].position) >= tolerance
+    ):
+        readings.pop(0)
+    return readings[1:] if readings else []
+
+
+def _noise(profile: RobotProfile, windows: list[list[Reading]]) -> None:
+    """sigma from the readings at rest: the spread about a straight line per axis and
+    window (a drifting reading is not noise), pooled over the axes and the windows of at
+    least three readings; the dead band from it."""
+    used = [w for w in windows if len(w) >= 3]
+    squares = sum(float(np.sum(_about_a_line(np.array([r.force for r in w])) ** 2)) for w in used)
+    dof = sum(3 * (len(w) - 2) for w in used)
+    count = sum(len(w) for w in used)
+    sigma = math.sqrt(squares / dof)
     sigma_u = sigma / math.sqrt(2 * dof)
     q = profile.quantities
     q["force_noise"] = Measurement(
         sigma,
         sigma_u,
         "N",
-        f"{n} readings at rest, one per period: the spread about a straight line per axis "
-        "(drift removed), pooled over x, y, z",
-        n,
+        f"{count} readings at rest, one per period (windows of "
+        f"{' + '.join(str(len(w)) for w in used)}, before and after the pushes): the spread "
+        "about a straight line per axis and window (drift removed), pooled over x, y, z",
+        count,
     )
     band = threshold_from_noise(sigma)
     q["dead_band"] = Measurement(
@@ -460,29 +502,38 @@ def _rest(session: _Session, profile: RobotProfile) -> Reading:
         0.0 if band == MIN_THRESHOLD else NOISE_SIGMAS * sigma_u,
         "N",
         f"deadband.threshold_from_noise: max({MIN_THRESHOLD:g} N, {NOISE_SIGMAS:g} sigma)",
-        n,
+        count,
     )
-    offset = forces.mean(axis=0)
-    error = np.sqrt(np.sum(residual**2, axis=0) / (n - 2) / n)
-    for i, axis in enumerate("xyz"):
-        q[f"force_offset_{axis}"] = Measurement(
-            float(offset[i]), float(error[i]), "N", f"mean of {n} readings at rest", n
-        )
     if sigma < QUIET_SIGMA:
         profile.notes.append(
             f"the force reading is implausibly quiet at rest (sigma {sigma:.2g} N): a frozen "
             "or noise-free reading"
         )
-    drift = float(np.max(np.abs(coef[1]))) * (n - 1)
-    if drift > max(NOISE_SIGMAS * sigma, MIN_THRESHOLD):
-        profile.notes.append(
-            f"the force reading drifted {drift:.2f} N over the {n} periods at rest (a creeping "
-            "grasp or a drifting sensor): removed from the noise"
-        )
-    session.rest_force = offset
-    # the force a push has met something at: well above the noise, well below contact
-    session.touch = max(TOUCH_SHARE * session.cfg.contact_force, TOUCH_SIGMAS * sigma)
-    return readings[-1]
+    for w in used:
+        forces = np.array([r.force for r in w])
+        drift = float(np.max(np.abs(forces[-1] - forces[0])))
+        if drift > max(NOISE_SIGMAS * sigma, MIN_THRESHOLD) * 2:
+            profile.notes.append(
+                f"the force reading drifted about {drift:.2f} N over {len(w)} periods at rest "
+                "(a creeping grasp or a drifting sensor): removed from the noise"
+            )
+    if len(used) == 2:
+        first, last = (np.mean([r.force for r in w], axis=0) for w in used)
+        change = float(np.linalg.norm(last - first))
+        if change > max(NOISE_SIGMAS * sigma, MIN_THRESHOLD):
+            profile.notes.append(
+                f"the reading at rest changed by {change:.2f} N over the calibration (the "
+                "grasp or the object moved under the pushes)"
+            )
+
+
+def _about_a_line(forces: FloatArray) -> FloatArray:
+    """(n, 3) the residuals of (n, 3) readings about a least-squares straight line in time."""
+    n = len(forces)
+    t = np.arange(n, dtype=float)
+    design = np.stack([np.ones(n), t - t.mean()], axis=1)
+    coef, *_ = np.linalg.lstsq(design, forces, rcond=None)
+    return np.asarray(forces - design @ coef, dtype=float)
 
 
 # --- phase 2: pushes ----------------------------------------------------------------------
