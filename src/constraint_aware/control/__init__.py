@@ -4,6 +4,7 @@ The simulated run (`constraint_aware.control.simulate`) is imported from its mod
 brings in the simulator.
 """
 
+from constraint_aware.control.calibrate import CalibrationConfig, calibrate
 from constraint_aware.control.controllers import (
     CONTROLLERS,
     POLICY_CONTROLLERS,
@@ -24,6 +25,7 @@ from constraint_aware.control.probe import (
     probe_sensor,
     probed_settings,
 )
+from constraint_aware.control.profile import Measurement, RobotProfile
 from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord, StepRecord
 from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench, reported_stiffness
 from constraint_aware.control.settings import Settings, parse_settings
@@ -34,19 +36,23 @@ __all__ = [
     "OUTCOME_MEANINGS",
     "POLICY_CONTROLLERS",
     "PROBE_VERDICTS",
+    "CalibrationConfig",
     "ControlInput",
     "DirectionController",
     "Executor",
     "ExecutorConfig",
+    "Measurement",
     "Pose",
     "ProbeConfig",
     "ProbeResult",
     "Robot",
+    "RobotProfile",
     "RunRecord",
     "Settings",
     "StepRecord",
     "TaskMonitor",
     "Wrench",
+    "calibrate",
     "command_jump_bound",
     "make_controller",
     "max_grasp_play",

@@ -66,7 +66,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from constraint_aware.control.probe import (
     STIFFNESS_VERDICTS,
@@ -946,6 +945,8 @@ def fit_impedance(
         (b [s], its standard error [s], the damping ratio b / (2 sqrt(a)), the residual RMS
         [m]), or None when the fit fails. The damping ratio is held in DAMPING_RATIO_RANGE.
     """
+    from scipy.optimize import least_squares  # here: importing the package stays light
+
     w = np.asarray(drive, dtype=float)
     x = np.asarray(position, dtype=float)
 
