@@ -12,10 +12,12 @@ The phases (one reading per control period throughout):
 1. Rest: `rest_periods` readings while holding: their mean is the force offset.
 2. Pushes in the workplane's directions (`control.probe.push_directions`: four in the plane,
    or the six world axes without one). Each push is a staircase: the setpoint moves further
-   along the direction every period. While |dF| (the force change from the reading before
-   the push) is below `contact_force` each stair is at most `free_step`, so that an object
-   met without warning adds at most max_stiffness x free_step; once the force rises the
-   stairs are sized from its measured slope. The push ends when
+   along the direction every period, by at most twice its last stair and never by more than
+   would take |dF| (the force change from the reading before the push) past 0.8 of the way
+   to `force_limit` should the object block the whole stair at the stiffest the arm may
+   be: `max_stiffness` until a slope of |dF| over the stretch has been measured, twice
+   that slope after. Once the force rises the stairs are sized from that slope. The push
+   ends when
    - |dF| reaches `contact_force`: blocked. That stair, held a period, is level A; one more
      stair, sized from the slope to add push_force - contact_force and held a period, is
      level B;
@@ -120,6 +122,9 @@ B_ROOM = 22
 #: x the noise sigma: from there on its stairs are sized from the measured slope.
 TOUCH_SHARE = 1.0 / 6.0
 TOUCH_SIGMAS = 5.0
+#: A stair may use at most this share of the headroom to the force limit, should the object
+#: block all of it at the stiffest the arm may be (the noise and the arm's dynamics add).
+SAFE_SHARE = 0.8
 #: Periods kept in the budget for levels A and B of a push that met the object.
 RESERVE_PERIODS = 4
 #: Periods a push needs at least (a few stairs, the way back and the settling): pushing stops
@@ -139,8 +144,7 @@ class CalibrationConfig:
     contact_force: float = 3.0  # [N] level A: a push has met the object at this |dF|
     push_force: float = 6.0  # [N] level B aims push_force - contact_force above level A
     max_stiffness: float = 20_000.0  # [N/m] the stiffest arm the pushes are sized for: until
-    # a push has measured the arm, a stair moves at most (force_limit - contact_force) /
-    # max_stiffness while the force is low
+    # a push has measured the arm, no stair is longer than 0.8 force_limit / max_stiffness
     first_push: float = 4e-4  # [m] the first stair of each push
     free_travel: float = 0.003  # [m] a direction where the hand follows the setpoint this
     # far with |dF| below contact_force is free
@@ -171,12 +175,6 @@ class CalibrationConfig:
         )
         check_int(n + "return_periods", self.return_periods, low=1)
         check_int(n + "max_periods", self.max_periods, low=self.rest_periods + 1)
-
-    @property
-    def free_step(self) -> float:
-        """[m] the largest stair while |dF| is below contact_force, before the arm has been
-        measured: (force_limit - contact_force) / max_stiffness."""
-        return (self.force_limit - self.contact_force) / self.max_stiffness
 
 
 @dataclass
@@ -247,17 +245,6 @@ class _Session:
     @property
     def remaining(self) -> int:
         return self.cfg.max_periods - self.periods
-
-    @property
-    def free_step(self) -> float:
-        """[m] the largest stair while the force is low: sized for max_stiffness until a push
-        has measured the arm (then for twice its slope: the arm's spring bounds how fast the
-        force can rise), and at most half of free_travel (a free push takes a few stairs)."""
-        cfg = self.cfg
-        step = cfg.free_step
-        if self.stiffness is not None:
-            step = max(step, (cfg.force_limit - cfg.contact_force) / (2.0 * self.stiffness))
-        return min(step, 0.5 * cfg.free_travel)
 
     def at(self, direction: FloatArray, depth: float) -> Pose:
         """The starting pose moved `depth` [m] along `direction`, within the travel limit."""
@@ -575,6 +562,7 @@ def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -
     cfg = session.cfg
     push = Push(direction=u, base=base)
     depth, step = 0.0, cfg.first_push
+    aim = 0.5 * (cfg.contact_force + cfg.push_force)  # passing contact_force in one stair
     while True:
         depth = min(depth + step, cfg.travel_limit)
         reading = session.step(session.at(u, depth))
@@ -592,16 +580,15 @@ def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -
         if session.remaining <= cfg.return_periods + RESERVE_PERIODS:
             session.notes.append("a push ended early: the budget needs the rest to come back")
             break
-        # the next stair: at most twice the last; while the force is low at most free_step;
-        # once it rises, what its measured slope says passes contact_force, aiming half-way
-        # to push_force (at least half the last stair: a smaller one would change |dF| by
-        # little more than the noise)
+        # the next stair: at most twice the last and half of free_travel (a free push takes
+        # a few stairs); once the force rises with a slope it can be trusted, what the slope
+        # says passes contact_force (at least half the last stair: a smaller one would change
+        # |dF| by little more than the noise); never more than _safe_step
+        grow = min(2.0 * step, 0.5 * cfg.free_travel)
         slope = _contact_slope(push, session.touch)
-        if slope is None:
-            step = min(2.0 * step, session.free_step)
-        else:
-            aim = 0.5 * (cfg.contact_force + cfg.push_force)
-            step = min(2.0 * step, max((aim - df) / slope, 0.5 * step))
+        if slope is not None:
+            grow = min(grow, max((aim - df) / slope, 0.5 * step))
+        step = min(grow, _safe_step(session, push, df))
     if push.kind == "blocked":
         _levels(session, push, depth, level_b)
         slopes = [
@@ -613,11 +600,21 @@ def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -
     return push
 
 
+def _safe_step(session: _Session, push: Push, df: float) -> float:
+    """[m] the largest stair that keeps |dF| within the force limit should the object block
+    all of it: SAFE_SHARE of the headroom (force_limit - |dF|) over the stiffest the arm
+    may be, twice the steepest slope measured (this push's, or an earlier push's), or
+    max_stiffness before any."""
+    known = [x for x in (_contact_slope(push, session.touch), session.stiffness) if x]
+    bound = 2.0 * max(known) if known else session.cfg.max_stiffness
+    return SAFE_SHARE * max(session.cfg.force_limit - df, 0.0) / bound
+
+
 def _contact_slope(push: Push, touch: float) -> float | None:
     """[N/m] the change of |dF| over the change of |d stretch| from the first stair whose
     |dF| passed `touch` [N] to the last (a wide base: over one small stair the sensor's
-    noise would dominate); None with fewer than two such stairs, or when either did not
-    grow."""
+    noise would dominate); None with fewer than two such stairs, or when |dF| rose by less
+    than `touch` between them (a slope the noise could make)."""
     touching = [r for r in push.stairs if push.change(r)[0] >= touch]
     if len(touching) < 2:
         return None
@@ -625,17 +622,17 @@ def _contact_slope(push: Push, touch: float) -> float | None:
     fa, fb = push.change(a)[0], push.change(b)[0]
     sa = float(np.linalg.norm(a.stretch - push.base.stretch))
     sb = float(np.linalg.norm(b.stretch - push.base.stretch))
-    if sb - sa <= 1e-6 or fb <= fa:
+    if sb - sa <= 1e-6 or fb - fa < touch:
         return None
     return (fb - fa) / (sb - sa)
 
 
 def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
     """Hold the stair that reached contact_force a period: level A. Then (when `level_b`)
-    one more stair toward push_force, sized from the slope and never beyond travel_limit,
-    held a period: level B; when the slope was overestimated and B is short of A by less
-    than LEVEL_SPREAD x (push_force - contact_force), one more stair sized from the slope
-    between A and B."""
+    one more stair toward push_force - contact_force above A, sized from the trusted slope
+    and never beyond _safe_step or travel_limit, held a period: level B; when B is short of
+    A by less than LEVEL_SPREAD x (push_force - contact_force), one more stair sized from
+    the slope between A and B."""
     cfg = session.cfg
     reached = push.stairs[-1]
     held = session.step()
@@ -644,16 +641,16 @@ def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
     if not level_b:
         return
     slope = _contact_slope(push, session.touch)
-    if slope is None:  # its own ratio: too steep with play, so B falls short (the safe side)
-        stretch = float(np.linalg.norm(held.stretch - push.base.stretch))
-        slope = push.change(held)[0] / max(stretch, 1e-6)
     wanted = push.change(held)[0] + (cfg.push_force - cfg.contact_force)
     for _ in range(2):
         now = push.level_b or held
         df = push.change(now)[0]
-        depth_b = min(push.depth_b or depth, cfg.travel_limit)
-        depth_b = min(depth_b + max(wanted - df, 0.0) / slope, cfg.travel_limit)
-        if depth_b - (push.depth_b or depth) < 1e-5:
+        start = push.depth_b or depth
+        step = _safe_step(session, push, df)
+        if slope is not None:
+            step = min(step, max(wanted - df, 0.0) / slope)
+        depth_b = min(start + step, cfg.travel_limit)
+        if depth_b - start < 1e-5 or session.remaining < 2:
             return
         first = session.step(session.at(push.direction, depth_b))
         last = session.step()
@@ -663,7 +660,7 @@ def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
         if gained >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
             return
         ds = float(np.linalg.norm(last.stretch - held.stretch))
-        if gained <= 0 or ds <= 1e-6:
+        if gained < session.touch or ds <= 1e-6:
             return
         slope = gained / ds
 
