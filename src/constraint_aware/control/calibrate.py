@@ -32,7 +32,8 @@ The phases (one reading per control period throughout):
    spent holding at the start.
 3. The quantities:
    - force noise sigma: the readings' spread about a straight line per axis (a drifting
-     reading is not noise), pooled over the rest before the pushes and the rest after them;
+     reading is not noise), pooled over the rest before the pushes and the rest after them
+     (when the two spreads agree within POOL_RATIO);
      the dead band is `deadband.threshold_from_noise(sigma)`;
    - stiffness k: the arm is a spring at the tool point, F = F0 - k stretch with the
      stretch = commanded - measured position; F0 holds what the stretch does not explain (a
@@ -107,6 +108,11 @@ STALE_SAMPLES = 3
 SETTLE_SHARE = 0.05
 #: Periods at most to wait after a push for the hand to settle at the start.
 SETTLE_PERIODS = 2
+#: The readings at rest after the pushes are pooled into the noise only when their spread is
+#: within this factor of the spread before them (either way): two windows of the same noise
+#: differ by more about once in 40 calibrations (an F-test at the windows' usual sizes); a
+#: larger difference means a grasp still moving after the pushes.
+POOL_RATIO = 1.5
 #: Below this sigma [N] a force reading is implausibly quiet at rest (frozen, or noise-free).
 QUIET_SIGMA = 1e-6
 #: Level B is used for the stiffness only when its |dF| exceeds level A's by at least this
@@ -411,7 +417,14 @@ def _run(session: _Session, normal: FloatArray | None, profile: RobotProfile) ->
     profile.notes.extend(dict.fromkeys(session.notes))
     final = _final_rest(session)
     if len(final) >= 3:
-        _noise(profile, [rest, final])
+        first, last = (_spread(w) for w in (rest, final))
+        if first > 0 and 1 / POOL_RATIO <= last / first <= POOL_RATIO:
+            _noise(profile, [rest, final])
+        else:
+            profile.notes.append(
+                f"the readings at rest after the pushes spread {last:.3g} N against "
+                f"{first:.3g} N before them (the grasp still moving): not pooled into the noise"
+            )
     period = robot.control_period
     _stiffness(profile, pushes, normal, cfg, period)
     _time_constant(profile, pushes, period)
@@ -511,6 +524,12 @@ def _noise(profile: RobotProfile, windows: list[list[Reading]]) -> None:
                 f"the reading at rest changed by {change:.2f} N over the calibration (the "
                 "grasp or the object moved under the pushes)"
             )
+
+
+def _spread(window: list[Reading]) -> float:
+    """[N] the per-axis spread of a window's readings about a straight line, pooled."""
+    residual = _about_a_line(np.array([r.force for r in window]))
+    return math.sqrt(float(np.sum(residual**2)) / (3 * (len(window) - 2)))
 
 
 def _about_a_line(forces: FloatArray) -> FloatArray:
