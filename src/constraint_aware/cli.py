@@ -941,6 +941,74 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
     return EXIT_OK if ok else EXIT_FAILED
 
 
+# --- cap calibrate ----------------------------------------------------------------------------
+def _calibrate_parser(p: argparse.ArgumentParser) -> None:
+    from constraint_aware.control.calibrate import CalibrationConfig
+
+    p.add_argument("task", choices=_task_names(), help="the simulated task whose handle is held")
+    _add_robot(p, "to calibrate")
+    p.add_argument("--seed", type=int, default=0, help="the sensor noise's seed")
+    p.add_argument(
+        "--noise", type=float, default=0.1, metavar="N", help="the simulated sensor noise [N]"
+    )
+    p.add_argument("--name", help="the robot's name in the profile (default: the robot spec)")
+    p.add_argument("--out", metavar="PATH", help="write the robot profile here (.json)")
+    specs = add_dataclass_flags(p.add_argument_group("calibration"), CalibrationConfig)
+    p.add_argument("--json", metavar="PATH", help="the profile as JSON ('-' = stdout)")
+    p.set_defaults(func=cmd_calibrate, calibration_specs=specs)
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from constraint_aware.control.calibrate import CalibrationConfig, calibrate
+    from constraint_aware.control.profile import QUANTITIES
+    from constraint_aware.control.simulate import RunSpec, grasped
+
+    check_output(args.out, "--out", JSON_SUFFIXES)
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    if not (math.isfinite(args.noise) and args.noise >= 0):
+        raise InvalidInputError(f"--noise {args.noise}: must be finite and >= 0 [N]")
+    spec = RunSpec(task=args.task, seed=args.seed, robot=args.robot, sensor_noise=args.noise)
+    chosen = collect(args, args.calibration_specs)
+    task, sim = grasped(spec)
+    # the calibration's force limit stays below the object's own
+    chosen.setdefault("force_limit", min(CalibrationConfig.force_limit, task.force_limit))
+    config = CalibrationConfig(**chosen)
+    name = args.name if args.name is not None else args.robot
+    try:
+        profile = calibrate(sim, name, task.workplane_normal, config, setup=args.task)
+    except BaseException as exc:  # write what was measured, then report (Ctrl-C: 130)
+        return report_partial(exc, "robot_profile", args.json, "the calibration")
+    out = human(args)
+    table = Table(
+        title=Text(
+            f"{name} holding {args.task}: {profile.outcome}, {profile.periods} periods "
+            f"({profile.robot_time:.1f} s of robot time)"
+        )
+    )
+    for column in ("quantity", "value", "+-", "unit", "samples", "why not measured"):
+        table.add_column(column, justify="left" if column[0] in "qwu" else "right")
+    for key, m in profile.quantities.items():
+        shown = "-" if m.value is None else f"{m.value:.4g}"
+        error = "-" if m.uncertainty is None else f"{m.uncertainty:.2g}"
+        table.add_row(key, shown, error, m.unit, str(m.count), m.reason)
+    out.print(table)
+    out.print(Text("how each was measured: the profile's 'method' fields"), soft_wrap=True)
+    out.print(Text(f"sensor convention: {profile.convention or 'not judged'}"), soft_wrap=True)
+    for note in profile.notes:
+        out.print(Text(f"note: {note}"), soft_wrap=True)
+    if args.out:
+        try:
+            profile.save(args.out)
+        except OSError as exc:
+            raise CapError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
+        out.print(Text(f"wrote {args.out}"), soft_wrap=True)
+    if args.json:
+        write_json(profile.to_dict(), args.json)
+    assert set(profile.quantities) == set(QUANTITIES)
+    wrong = profile.convention in ("flipped_sign", "inconsistent")
+    return EXIT_OK if profile.outcome == "complete" and not wrong else EXIT_FAILED
+
+
 # --- parser -----------------------------------------------------------------------------------
 COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
     "bench": ("reproduce the paper's experiments as a report", _bench_parser),
@@ -955,6 +1023,11 @@ COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
         _check_sensor_parser,
     ),
     "export-onnx": ("the policy as an ONNX model for C++ controllers", _export_onnx_parser),
+    "calibrate": (
+        "measure a robot's force noise, stiffness, tracking time constant, grasp play and "
+        "sensor convention through the Robot protocol, into a robot profile",
+        _calibrate_parser,
+    ),
 }
 
 

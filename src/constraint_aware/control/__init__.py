@@ -4,6 +4,7 @@ The simulated run (`constraint_aware.control.simulate`) is imported from its mod
 brings in the simulator.
 """
 
+from constraint_aware.control.calibrate import CalibrationConfig, calibrate
 from constraint_aware.control.controllers import (
     CONTROLLERS,
     POLICY_CONTROLLERS,
@@ -30,6 +31,7 @@ from constraint_aware.control.probe import (
     probe_sensor,
     probed_settings,
 )
+from constraint_aware.control.profile import Measurement, RobotProfile
 from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord, StepRecord
 from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench, reported_stiffness
 from constraint_aware.control.run_inputs import INPUT_NAMES, INPUT_SOURCES
@@ -43,6 +45,7 @@ __all__ = [
     "OUTCOME_MEANINGS",
     "POLICY_CONTROLLERS",
     "PROBE_VERDICTS",
+    "CalibrationConfig",
     "ControlInput",
     "DirectionController",
     "Executor",
@@ -50,11 +53,13 @@ __all__ = [
     "GoalConfig",
     "GuardsConfig",
     "LimitsConfig",
+    "Measurement",
     "Pose",
     "ProbeConfig",
     "ProbeResult",
     "Robot",
     "RobotOverrides",
+    "RobotProfile",
     "RunRecord",
     "SelfCheckConfig",
     "Settings",
@@ -63,6 +68,7 @@ __all__ = [
     "TimingConfig",
     "TorquePolicyConfig",
     "Wrench",
+    "calibrate",
     "command_jump_bound",
     "make_controller",
     "max_grasp_play",
