@@ -7,7 +7,6 @@ from typing import Any, Literal
 import gymnasium as gym
 import numpy as np
 
-from constraint_aware.envs import SINGLE_SYSTEM_ID
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.training.batch import ACT_DIM, SingleSystemBatch, observation_space
 from constraint_aware.training.config import EnvConfig
@@ -19,7 +18,6 @@ from constraint_aware.training.physics import (
 
 Backend = Literal["analytic", "mujoco"]
 BACKENDS: tuple[str, ...] = ("analytic", "mujoco")
-ENV_ID = SINGLE_SYSTEM_ID  # registered by constraint_aware.envs
 
 
 def make_force_model(backend: str, config: EnvConfig) -> ForceModel:
@@ -90,11 +88,3 @@ class SingleSystemEnv(gym.Env[np.ndarray, np.ndarray]):
         if done:
             info["final_angle_deg"] = info["angle_deg"]
         return obs[0].astype(np.float32), float(reward[0]), bool(done), False, info
-
-
-def register() -> None:
-    """Register ENV_ID (and the other environments) with Gymnasium; idempotent. Importing
-    `constraint_aware` already does it (constraint_aware.envs)."""
-    from constraint_aware.envs import register_envs
-
-    register_envs()

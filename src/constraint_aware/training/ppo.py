@@ -29,7 +29,6 @@ from stable_baselines3.common.torch_layers import MlpExtractor
 from stable_baselines3.common.utils import LinearSchedule
 from stable_baselines3.common.vec_env import VecEnv
 
-import constraint_aware
 from constraint_aware.errors import CapError, InvalidInputError, PolicyFileError, UnknownNameError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.policy import (
@@ -42,6 +41,7 @@ from constraint_aware.training.config import WIDE_STIFFNESS, EnvConfig, resistan
 from constraint_aware.training.evaluate import evaluate
 from constraint_aware.training.reference import reference_controllers
 from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
+from constraint_aware.version import __version__
 
 #: The observation of the default policy, chosen by benchmarks/observation_study.py: the
 #: magnitude with a flag for "step force known" (policy.OBSERVATIONS; the card's
@@ -232,7 +232,7 @@ def export_policy(model: BaseAlgorithm, card: dict[str, Any]) -> ConstraintAware
 
 def library_versions() -> dict[str, str]:
     return {
-        "constraint_aware": constraint_aware.__version__,
+        "constraint_aware": __version__,
         "python": platform.python_version(),
         "numpy": np.__version__,
         "torch": torch.__version__,
