@@ -91,8 +91,9 @@ def test_replot_redraws_without_running(bench_dir: Path) -> None:
     assert (bench_dir / "report.md").read_text() == before
 
 
-def test_paper_conditions_meet_the_issue_bars(bench_dir: Path) -> None:
-    """The shipped policy at the paper's conditions (issue 3's must-show, checked each run)."""
+def test_paper_conditions_meet_the_bars(bench_dir: Path) -> None:
+    """The shipped policy at the paper's conditions: every run succeeds, prismatic ones align
+    within 5 steps (checked on every bench)."""
     paper = json.loads((bench_dir / "results.json").read_text())["paper"]
     for name, s in paper.items():
         if s["controller"] == "policy" and not name.startswith("appendix_"):
@@ -174,20 +175,81 @@ def test_policy_section_in_results_and_report(bench_dir: Path) -> None:
     )
 
 
+def test_results_carry_their_provenance(bench_dir: Path) -> None:
+    results = json.loads((bench_dir / "results.json").read_text())
+    prov = results["provenance"]
+    assert prov["machine"]["cpu_count"] >= 1 and prov["date"]
+    assert prov["libraries"]["mujoco"] and prov["libraries"]["constraint-aware"]
+    assert results["skipped"] == {} and "embodiment" in results  # this machine has the extra
+
+
 # --- the bench's policy and robot (cap bench --policy / --robot) ------------------------------
 CHOSEN_ROBOT = "hook-hand:stiffness=3000"
+#: Runs the CLI as on a machine without dm-control (the `bench` extra): an absent module is
+#: None in sys.modules, so neither `import dm_control` nor find_spec finds it.
+WITHOUT_DM_CONTROL = (
+    "import sys; sys.modules['dm_control'] = None; "
+    "from constraint_aware.cli import main; sys.exit(main(sys.argv[1:]))"
+)
 
 
 @pytest.fixture(scope="module")
-def chosen_bench_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def chosen_bench(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+    """A quick bench with a chosen policy and robot, on a machine without the Jaco's models:
+    (its directory, its stderr)."""
     out = tmp_path_factory.mktemp("bench-chosen")
     proc = subprocess.run(
-        [sys.executable, "-m", "constraint_aware.cli", "bench", "--quick", "--out", str(out),
+        [sys.executable, "-c", WITHOUT_DM_CONTROL, "bench", "--quick", "--out", str(out),
          "--policy", "paper", "--robot", CHOSEN_ROBOT],
         capture_output=True, text=True, timeout=900,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    return out
+    return out, proc.stderr
+
+
+@pytest.fixture(scope="module")
+def chosen_bench_dir(chosen_bench: tuple[Path, str]) -> Path:
+    return chosen_bench[0]
+
+
+def test_a_section_without_its_extra_is_skipped_and_said_at_the_start(
+    chosen_bench: tuple[Path, str],
+) -> None:
+    out, stderr = chosen_bench
+    results = json.loads((out / "results.json").read_text())
+    assert set(results["skipped"]) == {"embodiment"} and "embodiment" not in results
+    line = results["skipped"]["embodiment"]
+    assert "dm-control" in line and "pip install 'constraint-aware[bench]'" in line
+    # the first thing said, before any run; and once in the report
+    assert stderr.splitlines()[0] == f"cap bench: skipping: {line}"
+    report = (out / "report.md").read_text()
+    assert report.count(line) == 1 and "## Embodiments" not in report
+
+
+def test_preflight_skips_only_what_cannot_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    from constraint_aware.bench import experiments as ex
+    from constraint_aware.bench.run import preflight, section_needs
+
+    for quick in (True, False):
+        cfg = ex.BenchConfig.for_mode(quick)
+        assert preflight(cfg) == {}  # the extra is installed here
+        assert ("heatmap" in section_needs(cfg)) is not quick
+    monkeypatch.setitem(sys.modules, "dm_control", None)
+    for quick in (True, False):
+        assert set(preflight(ex.BenchConfig.for_mode(quick))) == {"embodiment"}
+
+
+def test_an_explicit_robot_without_its_models_is_refused_before_anything_runs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from constraint_aware.cli import main
+
+    monkeypatch.setitem(sys.modules, "dm_control", None)
+    out = tmp_path / "out"
+    assert main(["bench", "--quick", "--out", str(out), "--robot", "jaco:period=0.05"]) == 2
+    err = capsys.readouterr().err
+    assert "--robot jaco:period=0.05" in err and "constraint-aware[bench]" in err
+    assert not out.exists()
 
 
 def test_bench_records_and_uses_the_chosen_policy_and_robot(

@@ -41,7 +41,7 @@ class SingleSystemEnv(gym.Env[np.ndarray, np.ndarray]):
     Each step the hand is commanded `step_length` along d from the body's pose; the body slides
     along u only, against Coulomb friction; the guide's force F on the body results.
 
-    Resistance (issue 9, `EnvConfig` documents the ranges): the object's own dry friction,
+    Resistance (`EnvConfig` documents the ranges): the object's own dry friction,
     damping, inertia and a released grasp preload along the joint; none by default.
 
     Observation: `config.observation` (policy.OBSERVATIONS), (F/|F|, d) in R^6 for the paper,

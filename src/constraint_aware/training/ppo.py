@@ -168,7 +168,7 @@ PRESETS: dict[str, TrainConfig] = {
     "fast": TrainConfig(),
     # The paper's reported values (5.1): batch 6000, learning rate 5e-5. The paper does not give
     # the minibatch; 60 divides 6000 and is closest to SB3's default of 64.
-    # The default policy (issue 9), in the environment with the object's own resistance
+    # The default policy: trained in the environment with the object's own resistance
     # (training.config.RESISTANCE), the observation chosen by the study, and k over
     # WIDE_STIFFNESS. PPO settings from benchmarks/results/train_speed.json: the 2x256 update
     # was 91 % of the wall time (env and evaluations the rest), so a 2x64 net with 5 epochs
