@@ -43,7 +43,7 @@ from constraint_aware.training.reference import reference_controllers
 from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
 from constraint_aware.version import __version__
 
-#: The observation of the default policy, chosen by benchmarks/observation_study.py: the
+#: The observation of the default policy, chosen by benchmarks/studies/observation_study.py: the
 #: magnitude with a flag for "step force known" (policy.OBSERVATIONS; the card's
 #: observation_study gives the reason and the numbers).
 DEFAULT_OBSERVATION = "magnitude_flag"
@@ -51,7 +51,7 @@ DEFAULT_OBSERVATION = "magnitude_flag"
 #: torch threads of the default preset. The 2x64 update is too small for intra-op threads to
 #: pay, and on a machine whose cores are busy a second thread waits at every op's barrier:
 #: under load 5-7 on 2 cores, 60k steps took 3.1 s with 1 thread and 64 s with 2
-#: (benchmarks/results/train_speed.json).
+#: (benchmarks/studies/results/train_speed.json).
 DEFAULT_TORCH_THREADS = 1
 
 #: The evaluations `TrainConfig.target_angle_deg` can apply to.
@@ -170,9 +170,9 @@ PRESETS: dict[str, TrainConfig] = {
     # the minibatch; 60 divides 6000 and is closest to SB3's default of 64.
     # The default policy: trained in the environment with the object's own resistance
     # (training.config.RESISTANCE), the observation chosen by the study, and k over
-    # WIDE_STIFFNESS. PPO settings from benchmarks/results/train_speed.json: the 2x256 update
-    # was 91 % of the wall time (env and evaluations the rest), so a 2x64 net with 5 epochs
-    # does ~4x the env steps per second and reaches the 3 deg target in fewer steps too; the
+    # WIDE_STIFFNESS. PPO settings from benchmarks/studies/results/train_speed.json: the 2x256
+    # update was 91 % of the wall time (env and evaluations the rest), so a 2x64 net with 5
+    # epochs does ~4x the env steps per second and reaches the 3 deg target in fewer steps; the
     # learning rate falls linearly to 0 over 3 M steps, so the last evaluations are not
     # limited by the step noise of a constant rate (standard evaluation 2.59 -> ~1.7 deg).
     "default": TrainConfig(
