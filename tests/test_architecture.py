@@ -8,8 +8,12 @@ import subprocess
 import sys
 import tomllib
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
+
+if TYPE_CHECKING:
+    from grimp import ImportGraph
 
 grimp = pytest.importorskip("grimp")  # installed with import-linter (the dev extra)
 
@@ -23,7 +27,7 @@ CONTRACTS = [
 ]
 
 
-def _graph() -> grimp.ImportGraph:
+def _graph() -> ImportGraph:
     return grimp.build_graph("constraint_aware", include_external_packages=True, cache_dir=None)
 
 
@@ -51,7 +55,7 @@ def test_the_executor_contract_can_see_mujoco() -> None:
     assert graph.chain_exists("constraint_aware.control.simulate", "mujoco")
 
 
-def _cycles(graph: grimp.ImportGraph) -> list[list[str]]:
+def _cycles(graph: ImportGraph) -> list[list[str]]:
     """Strongly connected components of more than one module (Tarjan, iterative)."""
     modules = sorted(m for m in graph.modules if m.startswith("constraint_aware"))
     edges = {
