@@ -63,9 +63,9 @@ SECTIONS: dict[str, str] = {
 class Need:
     """Something a section needs beyond the core install, and the extra that installs it."""
 
-    what: str
-    extra: str
-    available: Callable[[], bool]
+    what: str  # what is needed, in words ("dm-control's Kinova Jaco models")
+    extra: str  # the optional-dependencies extra of pyproject.toml that installs it
+    available: Callable[[], bool]  # whether it is installed here (cheap: no model is built)
 
     def install(self) -> str:
         """The command that installs it, as one phrase."""
@@ -85,7 +85,7 @@ def _jaco_models_installed() -> bool:
     return True
 
 
-#: What each embodiment needs beyond the core install (none: nothing).
+#: What an embodiment needs beyond the core install (one not listed needs nothing more).
 ROBOT_NEEDS: dict[str, Need] = {
     "jaco": Need("dm-control's Kinova Jaco models", BENCH_EXTRA, _jaco_models_installed),
 }
