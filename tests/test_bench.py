@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import re
-import subprocess
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -33,16 +31,14 @@ def test_every_figure_exists_and_is_a_png(bench_dir: Path) -> None:
         assert (bench_dir / name).read_bytes()[:8] == PNG, name
 
 
-def test_replot_redraws_without_running(bench_dir: Path) -> None:
+def test_replot_redraws_without_running(
+    bench_dir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from constraint_aware.cli import main
+
     before = (bench_dir / "report.md").read_text()
     (bench_dir / "fig6_drawer.png").unlink()
-    proc = subprocess.run(
-        [sys.executable, "-m", "constraint_aware.cli", "bench", "--replot", str(bench_dir)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert main(["bench", "--replot", str(bench_dir)]) == 0, capsys.readouterr()
     assert (bench_dir / "fig6_drawer.png").read_bytes()[:8] == PNG
     assert (bench_dir / "report.md").read_text() == before
 
@@ -66,18 +62,15 @@ def test_paper_conditions_meet_the_bars(bench_dir: Path) -> None:
     ids=["missing", "empty", "truncated", "not-utf8", "deeply-nested", "not-a-bench"],
 )
 def test_replot_of_a_missing_or_corrupted_results_file_is_a_clear_error(
-    tmp_path: Path, content: bytes | None
+    tmp_path: Path, content: bytes | None, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    from constraint_aware.cli import main
+
     if content is not None:
         (tmp_path / "results.json").write_bytes(content)
-    proc = subprocess.run(
-        [sys.executable, "-m", "constraint_aware.cli", "bench", "--replot", str(tmp_path)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert proc.returncode == 2
-    assert "results.json" in proc.stderr and "Traceback" not in proc.stderr
+    assert main(["bench", "--replot", str(tmp_path)]) == 2  # an exception would propagate
+    err = capsys.readouterr().err
+    assert "results.json" in err and "Traceback" not in err
 
 
 def test_policy_section_summaries_do_not_depend_on_run_order() -> None:
