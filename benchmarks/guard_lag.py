@@ -21,7 +21,6 @@ PYTHONPATH measures that code (e.g. the executor before the lag model).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from collections import Counter
@@ -31,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench.faults import Reporting, hook_hand_time_constant
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import PAPER_OFFSETS
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -193,8 +193,7 @@ def main() -> None:
         "runs": runs,
         "jaco_drawer_30deg": jaco,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(out, indent=1, allow_nan=False) + "\n")
+    write_results(args.out, out)
     for setting, row in table.items():
         print(setting)
         for k, cell in row.items():

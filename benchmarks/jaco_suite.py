@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import statistics
@@ -26,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import constraint_aware.control.guards as guards_module
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import suite_specs
 from constraint_aware.control.simulate import run
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -85,8 +85,7 @@ def main() -> None:
     guards_module.ARM_FORCE_DISAGREEMENT_STEPS = shipped
     out["wall_time_s"] = time.perf_counter() - start
     out["load_average_1min_at_end"] = os.getloadavg()[0]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(out, indent=1) + "\n")
+    write_results(args.out, out)
 
 
 if __name__ == "__main__":

@@ -244,7 +244,8 @@ def test_run_policy_flag_drives_the_run_with_that_policy(tmp_path: Path) -> None
 def test_train_tiny_budget(tmp_path: Path) -> None:
     pytest.importorskip("stable_baselines3")
     out = cap(
-        "train", "--steps", "12000", "--out", str(tmp_path / "run"), "--quiet",
+        "train", "--steps", "1000", "--n-envs", "200", "--batch-size", "500",
+        "--out", str(tmp_path / "run"), "--quiet", "--torch-threads", "1",
         "--eval-episodes", "300", "--final-episodes", "300", "--env.friction", "0", "0.1",
         "--json", str(tmp_path / "t.json"),
     )  # fmt: skip

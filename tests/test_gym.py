@@ -13,9 +13,9 @@ from gymnasium.utils.env_checker import check_env
 
 import constraint_aware  # registers the environments
 from constraint_aware.envs import ENV_IDS, SINGLE_SYSTEM_ID, TASK_ENV_IDS
+from constraint_aware.envs.single_system_vector import SingleSystemVectorEnv
 from constraint_aware.training.batch import SingleSystemBatch
 from constraint_aware.training.config import EnvConfig
-from constraint_aware.training.gym_vector import SingleSystemVectorEnv
 
 
 def test_every_id_is_registered_on_import_without_heavy_imports() -> None:

@@ -1,6 +1,6 @@
 """The objects' visual parts (door panel, drawer box, furniture) and the two embodiments.
 
-    nice -n 10 python benchmarks/visual_parts.py [--seeds 3] [--out FILE.json]
+    nice -n 10 python benchmarks/studies/visual_parts.py [--seeds 3] [--out FILE.json]
 
 The objects' main parts and furniture have no contacts (the joint is the constraint). This
 measures (1) the hook hand's least clearance to them over the five presets' runs, (2) how deep
@@ -9,7 +9,7 @@ the hinge side (its placement today, azimuth +90 deg) and on the free edge's sid
 and (3) Jaco drawer and door runs with the parts solid for the arm (sim.objects.
 ARM_CONTACT_BIT) against the visual parts. The Jaco runs use the default policy and the
 classical controller from 10 deg, the executor's start-of-run self-check off (it stops most
-arm runs before they move). Writes JSON, prints a table.
+arm runs before they move on the lagging arm). Writes JSON with provenance, prints a table.
 """
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
-import json
 import math
 import time
 from collections.abc import Iterator
@@ -27,6 +26,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.simulate import RunSpec, controller_geometry, executor_config, run
@@ -173,9 +173,7 @@ def main() -> None:
                         )
     result["jaco_runs"] = runs
     result["wall_time_s"] = time.perf_counter() - start
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=1) + "\n")
+    out = write_results(args.out, result)
     print("hook hand least clearance [mm]:", result["hook_hand_least_clearance_mm"])
     for name, found in grasp.items():
         print(f"Jaco grasp, {name}: " + (", ".join(
