@@ -46,6 +46,7 @@ import mujoco
 
 import constraint_aware  # noqa: F401  (registers the Gymnasium envs)
 import constraint_aware.control.executor as executor_module
+import constraint_aware.control.guards as guards_module
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import PAPER_OFFSETS
 from constraint_aware.control.simulate import RunSpec, run
@@ -56,7 +57,7 @@ from constraint_aware.sim.tasks import TASKS
 
 STEPS = 30
 DEFAULT_OUT = Path(__file__).parent / "results" / "sim_speed.json"
-QUASI_STATIC_GUARDS_OFF: dict[str, object] = {"self_check_steps": 0}  # and the arm-force one
+QUASI_STATIC_GUARDS_OFF: dict[str, object] = {"self_check__steps": 0}  # and the arm-force one
 PARTS = ("overhead", "realtime", "env", "build")
 
 
@@ -149,8 +150,8 @@ def episode(task: str, robot: str, policy: ConstraintAwarePolicy) -> dict[str, f
 def realtime(robot: str, repeats: int) -> dict[str, Any]:
     """The control real-time factor on one core (module docstring)."""
     policy = ConstraintAwarePolicy.load()
-    guard = executor_module.ARM_FORCE_DISAGREEMENT_STEPS
-    executor_module.ARM_FORCE_DISAGREEMENT_STEPS = math.inf
+    guard = guards_module.ARM_FORCE_DISAGREEMENT_STEPS
+    guards_module.ARM_FORCE_DISAGREEMENT_STEPS = math.inf
     try:
         per_task: dict[str, dict[str, float]] = {}
         for task in TASKS:
@@ -166,7 +167,7 @@ def realtime(robot: str, repeats: int) -> dict[str, Any]:
                 "simulated_real_time_factor_cpu": simulated / cpu,
             }
     finally:
-        executor_module.ARM_FORCE_DISAGREEMENT_STEPS = guard
+        guards_module.ARM_FORCE_DISAGREEMENT_STEPS = guard
     factors = [v["control_real_time_factor_cpu"] for v in per_task.values()]
     return {
         "per_task": per_task,
