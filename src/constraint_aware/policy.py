@@ -28,7 +28,14 @@ from constraint_aware.errors import (
     UnknownNameError,
     check_number,
 )
-from constraint_aware.geometry import FloatArray, as_vector, normalize_force, update_direction_rule
+from constraint_aware.geometry import (
+    FloatArray,
+    as_vector,
+    cross,
+    norm,
+    normalize_force,
+    update_direction_rule,
+)
 
 CARD_FORMAT = "constraint-aware-policy/1"
 _CURRENT = (
@@ -172,19 +179,19 @@ class DirectionUpdater:
             thr = check_number("threshold", threshold, low=0, unit="N")
         if step_force is not None:
             step_force = check_number("step_force", step_force, low=0, low_open=True, unit="N")
-        norm_d = float(np.linalg.norm(d))
+        norm_d = norm(d)
         if norm_d < 1e-9:
             raise InvalidInputError("direction: must be a non-zero vector")
         d = d / norm_d
         f_hat = normalize_force(f, thr)
-        force_norm = float(np.linalg.norm(f))
+        force_norm = norm(f)
         current = np.concatenate([f_hat, d])
         if p.observation == "history":
             obs = np.concatenate([current, self._previous])
             self._previous = current
         elif p.observation in MAGNITUDE_OBSERVATIONS:
             ratio = 0.0
-            if step_force is not None and np.any(f_hat):
+            if step_force is not None and f_hat.any():
                 ratio = min(force_norm / float(step_force), MAGNITUDE_CLIP)
             extra = (
                 [ratio] if p.observation == "magnitude" else [ratio, float(step_force is not None)]
@@ -192,7 +199,7 @@ class DirectionUpdater:
             obs = np.concatenate([current, extra])
         else:
             obs = current
-        if not np.any(f_hat):
+        if not f_hat.any():
             return d
         blocked = step_force is None or force_norm >= step_force
         # the network's action as it is (the paper's rule) without n, or for a blocked step
@@ -222,18 +229,17 @@ def mirror_average(
     observation of `direction` (3,) unit d; normal: (3,) not parallel to d (else the plain
     action is returned).
     """
-    m = np.cross(normal, direction)
-    norm = float(np.linalg.norm(m))
-    if norm < 1e-9:  # d along n: no in-plane side to mirror
+    m = cross(normal, direction)
+    size = norm(m)
+    if size < 1e-9:  # d along n: no in-plane side to mirror
         return policy.act_batch(obs[None, :])[0]
-    m = m / norm
+    m = m / size
     mirror = np.eye(3) - 2.0 * np.outer(m, m)
-    mirrored = obs.copy()
-    layout = policy.observation_layout
-    for start, name in enumerate(layout):  # each 3-vector block: names *_x, *_y, *_z
-        if name.endswith("_x"):
-            mirrored[start : start + 3] = mirror @ obs[start : start + 3]
-    a, a_mirrored = policy.act_batch(np.stack([obs, mirrored]))
+    pair = np.empty((2, obs.size))
+    pair[0] = pair[1] = obs
+    for start in policy.vector_blocks:
+        pair[1, start : start + 3] = mirror @ obs[start : start + 3]
+    a, a_mirrored = policy.act_batch(pair)
     return np.asarray(0.5 * (a + mirror @ a_mirrored))
 
 
@@ -261,6 +267,8 @@ class ConstraintAwarePolicy:
             )
         self.observation = observation
         self.observation_layout = layout
+        #: where each 3-vector of the observation starts (names *_x, *_y, *_z)
+        self.vector_blocks = tuple(i for i, name in enumerate(layout) if name.endswith("_x"))
         # Float64 copies: the float32 training weights are reproduced to ~1e-7 while the
         # matrix products avoid float32 round-off.
         self._weights = [np.ascontiguousarray(w.T, dtype=np.float64) for w, _ in layers]
@@ -393,7 +401,7 @@ class ConstraintAwarePolicy:
                 f"obs: expected shape (N, {width}) (observation {self.observation!r}: "
                 f"{', '.join(self.observation_layout)}), got {arr.shape}"
             )
-        if not np.all(np.isfinite(arr)):
+        if not np.isfinite(arr).all():
             rows = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
             raise InvalidInputError(
                 f"obs: NaN or inf in {rows.size} row(s), the first at row {int(rows[0])}"
@@ -481,9 +489,10 @@ def _vector(value: ArrayLike, name: str) -> FloatArray:
 
 
 def _finite_norm(vector: FloatArray, name: str) -> FloatArray:
-    with np.errstate(over="ignore"):
-        norm = float(np.linalg.norm(vector))
-    if not (np.all(np.isfinite(vector)) and math.isfinite(norm)):
+    # a non-finite element makes the norm non-finite too; Python floats overflow to inf
+    # without a warning
+    x, y, z = vector.tolist()
+    if not math.isfinite(math.sqrt(x * x + y * y + z * z)):
         raise InvalidInputError(
             f"{name}: its norm overflows ({vector.tolist()}); expected a physical value"
         )
