@@ -131,11 +131,11 @@ def rotate_about(v: FloatArray, axis: FloatArray, angle_rad: FloatArray | float)
     v, axis = np.asarray(v, dtype=np.float64), np.asarray(axis, dtype=np.float64)
     if v.shape == (3,) and axis.shape == (3,) and np.ndim(angle_rad) == 0:
         # numpy's cos and sin (not math's): the same floats as the batched path
-        c, s = float(np.cos(angle_rad)), float(np.sin(angle_rad))
+        cos, sin = float(np.cos(angle_rad)), float(np.sin(angle_rad))
         a0, a1, a2 = axis.tolist()
         v0, v1, v2 = v.tolist()
-        kv = a0 * v0 + a1 * v1 + a2 * v2
-        return v * c + cross(axis, v) * s + axis * kv * (1.0 - c)
+        along = a0 * v0 + a1 * v1 + a2 * v2
+        return v * cos + cross(axis, v) * sin + axis * along * (1.0 - cos)
     ang = np.asarray(angle_rad, dtype=np.float64)[..., None]
     c, s = np.cos(ang), np.sin(ang)
     kv = np.sum(axis * v, axis=-1, keepdims=True)
