@@ -39,11 +39,12 @@ DEFAULT_OUT = Path(__file__).parent / "results" / "sweep_dask.json"
 
 
 def canonical_results(out_dir: Path) -> tuple[dict[str, Any], float]:
-    """results.json without its wall times (the bench's and its sections') and worker count,
-    and the bench's wall time [s]."""
+    """results.json without its wall times (the bench's and its sections'), worker count and
+    provenance (date and load average), and the bench's wall time [s]."""
     results = json.loads((out_dir / RESULTS).read_text())
     wall = float(results["meta"].pop("wall_time_s"))
     results["meta"].pop("workers")
+    results.pop("provenance", None)
 
     def drop_wall_times(node: Any) -> None:
         if isinstance(node, dict):
