@@ -2,6 +2,8 @@
 
     python benchmarks/executor_speed.py [--repeats 5] [--robot hook-hand] [--top 25]
         [--out benchmarks/results/executor_speed.json]
+    python benchmarks/executor_speed.py --trees NAME=SRC,NAME=SRC [--rounds 3] [--repeats 1]
+        [--out ...]
 
 Each of the paper's conditions (bench/sweep.py `PAPER_OFFSETS`: the five tasks, the drawer at
 both signs) is run `--repeats` times with controller "policy" (the shipped default policy),
@@ -15,16 +17,26 @@ forward pass (`ConstraintAwarePolicy.act_batch` on one observation; `act` adds i
 validation) and their ratio; the 1-minute load average; and where the time goes: a cProfile of
 one more pass over the conditions (not timed), the `--top` functions by own time with their
 share of the steps' total.
+
+With `--trees`, the same measurement of several source trees (e.g. a checkout of main and
+this tree's src), each in its own subprocess with `PYTHONPATH` set to the tree, interleaved
+round by round (`--rounds`) so that a shared machine's load falls on every tree alike; per
+tree the median over rounds of the step's median and 99th percentile CPU time and of the
+forward pass, and the ratio of each tree's step median to the first tree's.
 """
 
 from __future__ import annotations
 
 import argparse
 import cProfile
+import json
 import math
 import os
 import pstats
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -159,15 +171,58 @@ def profile_table(profile: cProfile.Profile, top: int) -> list[dict[str, Any]]:
     ]
 
 
+def compare_trees(trees: dict[str, str], rounds: int, repeats: int, robot: str) -> dict[str, Any]:
+    """The measurement of each source tree in `trees` (name -> src directory) in a subprocess,
+    interleaved over `rounds` (module docstring)."""
+    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in trees}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(rounds):
+            for name, src in trees.items():
+                out = Path(tmp) / f"{name}-{i}.json"
+                command = [sys.executable, __file__, "--repeats", str(repeats)]
+                command += ["--robot", robot, "--out", str(out)]
+                env = {**os.environ, "PYTHONPATH": src}
+                subprocess.run(command, env=env, check=True, capture_output=True)
+                runs[name].append(json.loads(out.read_text()))
+    keys = ("step_cpu_us_median", "step_cpu_us_p99", "act_batch_us_median")
+    first = next(iter(trees))
+    table: dict[str, Any] = {
+        name: {
+            "src": trees[name],
+            **{k: statistics.median(r[k] for r in rows) for k in keys},
+            "load_average_1min": [r["load_average_1min_at_start"] for r in rows],
+        }
+        for name, rows in runs.items()
+    }
+    for row in table.values():
+        row["step_median_over_first"] = (
+            row["step_cpu_us_median"] / table[first]["step_cpu_us_median"]
+        )
+    return {"robot": robot, "rounds": rounds, "repeats": repeats, "trees": table}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--robot", default="hook-hand")
     parser.add_argument("--top", type=int, default=25)
+    parser.add_argument("--trees", help="NAME=SRC,NAME=SRC: compare source trees")
+    parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = parser.parse_args()
     if args.repeats < 1:
         parser.error("--repeats must be >= 1")
+    if args.trees:
+        if args.rounds < 1:
+            parser.error("--rounds must be >= 1")
+        pairs = [item.partition("=") for item in args.trees.split(",")]
+        if any(not name or not src for name, _, src in pairs):
+            parser.error("--trees: expected NAME=SRC,NAME=SRC")
+        trees = {name: src for name, _, src in pairs}
+        compared = compare_trees(trees, args.rounds, args.repeats, args.robot)
+        write_results(args.out, compared)
+        print(json.dumps(compared, indent=1))
+        return
     load_start = os.getloadavg()[0]
     policy = ConstraintAwarePolicy.load()
     specs = [
