@@ -80,7 +80,6 @@ GAP_VARIANTS = (
     "steady: reversals before location",
     "steady: stop 28",
     "steady: stop 29",
-    "steady: lag inversion",
     PROBED,
     *REFERENCES,
 )
@@ -394,7 +393,6 @@ def main() -> None:
         *paired_differences(gap_runs, "steady", "classical"),
         *paired_differences(gap_runs, PROBED, "classical"),
         *paired_differences(gap_runs, "steady", "steady: reversals before location"),
-        *paired_differences(gap_runs, "steady: lag inversion", "classical"),
         *paired_differences(gap_runs, "steady" + SETTLED_SUFFIX, "classical" + SETTLED_SUFFIX),
     ]
     data: dict[str, Any] = {

@@ -265,7 +265,7 @@ def test_the_probed_variant_probes_a_twin_and_not_at_the_settled_period() -> Non
 
 
 @pytest.mark.parametrize(
-    ("variant", "preload", "seed"), [("steady: lag inversion", 6.0, 0), ("classical", 7.0, 1)]
+    ("variant", "preload", "seed"), [("steady", 6.0, 0), ("classical", 7.0, 1)]
 )
 def test_the_self_check_lets_a_handle_with_a_released_preload_through(
     variant: str, preload: float, seed: int

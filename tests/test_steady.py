@@ -77,17 +77,6 @@ def test_a_reversing_proposal_halves_the_gain_down_to_its_floor() -> None:
     assert abs(turns[-1]) == pytest.approx(10.0 * cfg.min_gain)  # never below the floor
 
 
-def test_the_strict_reversal_option_lets_a_bigger_reversal_through() -> None:
-    """Any reversal halves the gain (the default); the rejected strict test (SteadyConfig)
-    lets a reversal bigger than the last proposal through in full."""
-    cfg = SteadyConfig(confidence_ramp=False, rotation_feedforward=False)
-    turns = _applied(SteadyDirection(Scripted([0.5, -10.0, 4.0]), config=cfg), 3)
-    assert turns == pytest.approx([0.5, -5.0, 1.0])  # halved twice: each proposal reversed
-    strict = dataclasses.replace(cfg, strict_reversal=True)
-    turns = _applied(SteadyDirection(Scripted([0.5, -10.0, 4.0]), config=strict), 3)
-    assert turns == pytest.approx([0.5, -10.0, 2.0])  # only the smaller reversal counts
-
-
 @pytest.mark.parametrize("once_located", [True, False])
 def test_a_reversal_of_a_proposal_made_before_the_path_was_located_is_not_an_overshoot(
     once_located: bool,
@@ -379,58 +368,6 @@ class Recording(AcrossGain):
 HALF_TAU = DT / math.log(2.0)
 
 
-def test_the_arm_lag_is_undone_across_d_from_the_located_reading_on() -> None:
-    """(F - lam F_prev) / (1 - lam) across d, lam = 0.5: the first reading (0.1 N, under the
-    0.4 N band) is passed as read; the first located one, 2 N after 0.1 N, becomes 3.9 N; a
-    constant 2 N stays 2 N; its drop to 1 N reads 0 N, to 0 N reads -1 N, and these later
-    readings are inverted although they are within the band (the path is located). The part
-    along d (-4 N, the object's resistance) is passed as read."""
-    inner = Recording()
-    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=True)
-    ctrl = SteadyDirection(inner, config=cfg)
-    _across_run(ctrl, [0.1, 2.0, 2.0, 1.0, 0.0], tracking_time_constant=HALF_TAU)
-    assert inner.seen == pytest.approx([0.1, 3.9, 2.0, 0.0, -1.0])
-    assert [float(f @ X) for f in inner.forces] == pytest.approx([-4.0] * 5)
-    assert [float(f @ N) for f in inner.forces] == pytest.approx([0.0] * 5)
-
-
-@pytest.mark.parametrize("case", ["no tau", "options off", "bad tau"])
-def test_without_a_reported_lag_or_with_the_option_off_the_readings_pass_as_read(
-    case: str,
-) -> None:
-    """The inversion is off by default (measured and rejected, SteadyConfig.lag_inversion);
-    with the carry removal off too, every reading is passed as read."""
-    inner = Recording()
-    on = case != "options off"
-    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=on, carry_removal=on)
-    tau = {"no tau": None, "options off": HALF_TAU, "bad tau": math.nan}[case]
-    _across_run(SteadyDirection(inner, config=cfg), [0.1, 2.0, 2.0, 1.0],
-                tracking_time_constant=tau)  # fmt: skip
-    assert inner.seen == pytest.approx([0.1, 2.0, 2.0, 1.0])
-
-
-def test_without_a_workplane_nothing_is_inverted() -> None:
-    """Nothing is told across d without a known workplane (no located reading)."""
-    inner = Recording()
-    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=True)
-    ctrl = SteadyDirection(inner, config=cfg)
-    ctrl.reset(X)
-    forces = [np.array([-4.0, a, 0.0]) for a in (0.1, 2.0, 1.0)]
-    for f in forces:
-        ctrl.next_direction(ControlInput(f, np.zeros(3), X, DT, 0.4, None,
-                                         tracking_time_constant=HALF_TAU))  # fmt: skip
-    assert np.allclose(inner.forces, forces)
-
-
-def test_the_play_compensation_adds_to_the_lag_inverted_reading() -> None:
-    """Both on the first located reading: (2 - 0.5 x 0.1) / 0.5 = 3.9 N, plus 3 N of play."""
-    inner = Recording()
-    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=True)
-    _across_run(SteadyDirection(inner, config=cfg), [0.1, 2.0, 2.0], play_force=3.0,
-                tracking_time_constant=HALF_TAU)  # fmt: skip
-    assert inner.seen == pytest.approx([0.1, 6.9, 2.0])
-
-
 #: a hook-hand-like start: k = 2000 N/m, a 1 cm first move, the hand 4 mm along when the
 #: reading is taken, tau = 0.05 s (x (1 + tau / dt) = 6 mm: the force across d x 10 / 6)
 TRAVEL = {"stiffness": 2000.0, "last_move": 0.01, "hand_travel": 0.004,
@@ -561,12 +498,3 @@ def test_the_carry_removal_needs_a_reported_lag(tau: float | None) -> None:
     ctrl = SteadyDirection(inner, config=SteadyConfig(rotation_feedforward=False))
     _across_run(ctrl, [0.1, 2.0, 3.0, 1.0], tracking_time_constant=tau)
     assert inner.seen == pytest.approx([0.1, 2.0, 3.0, 1.0])
-
-
-def test_the_lag_inversion_supersedes_the_carry_removal() -> None:
-    """Both on: the inversion's (F - lam F_prev) / (1 - lam), not the removal's F - lam F_prev."""
-    inner = Recording()
-    cfg = SteadyConfig(rotation_feedforward=False, lag_inversion=True, carry_removal=True)
-    _across_run(SteadyDirection(inner, config=cfg), [0.1, 2.0, 3.0],
-                tracking_time_constant=HALF_TAU)  # fmt: skip
-    assert inner.seen == pytest.approx([0.1, 3.9, 4.0])

@@ -235,9 +235,7 @@ PROBED = "steady + probe"
 #: fed into d before a reading has located the path), "steady: reversals before location" as
 #: stop 24 shipped it (the overshoot damping tracking the proposals of readings that had not
 #: located the path), "steady: stop 28" as stop 28 shipped it (the start's reading not scaled
-#: from the hand's travel), "steady: stop 29" as stop 29 shipped it (no carry removal),
-#: "steady: strict reversal" a rejected overshoot test and "steady:
-#: lag inversion" the rejected lag inversion (SteadyConfig; both measured on stop 28's).
+#: from the hand's travel), "steady: stop 29" as stop 29 shipped it (no carry removal).
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
@@ -251,8 +249,6 @@ VARIANTS: dict[str, ControllerFactory] = {
     ),
     "steady: stop 28": _steady(STOP28),  # the start's reading as it is
     "steady: stop 29": _steady(STOP29),  # every located reading as read
-    "steady: strict reversal": _steady(dataclasses.replace(STOP28, strict_reversal=True)),
-    "steady: lag inversion": _steady(dataclasses.replace(STOP28, lag_inversion=True)),
     "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
     "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
     "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),

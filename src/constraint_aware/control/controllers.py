@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Protocol
 
 import numpy as np
@@ -268,12 +268,10 @@ class SteadyConfig:
 
     confidence_ramp: bool = True
     overshoot_damping: bool = True
-    strict_reversal: bool = False
     rotation_feedforward: bool = True
     play_compensation: bool = True
     wait_for_location: bool = True
     reversals_once_located: bool = True
-    lag_inversion: bool = False
     travel_scaling: bool = True
     carry_removal: bool = True
     overshoot_factor: float = OVERSHOOT_FACTOR
@@ -364,7 +362,7 @@ class SteadyDirection(_Base):
         # first located reading on
         asked = self._lag_undone(inp, across, self._located or locates)
         # (not with lag_inversion, which already undoes the lag on this reading)
-        scale = cfg.travel_scaling and not cfg.lag_inversion and self._readings == 2
+        scale = cfg.travel_scaling and self._readings == 2
         if scale and locates and self._translated(inp):
             asked = _travel_scaled(asked, across)
         compensate = cfg.play_compensation and not self._play_used and locates
@@ -393,8 +391,6 @@ class SteadyDirection(_Base):
         if cfg.overshoot_damping and size > 1e-9 and tracked:
             # a reversal of the last proposal, unless it reverses the play compensation
             overshot = float(turn @ self._last_turn) < 0 and not take_back
-            if cfg.strict_reversal:  # ... by no more than it (rejected, see SteadyConfig)
-                overshot = overshot and size <= float(np.linalg.norm(self._last_turn)) + 1e-12
             if overshot:
                 self.gain = max(self.gain * cfg.overshoot_factor, cfg.min_gain)
             else:
@@ -445,7 +441,7 @@ class SteadyDirection(_Base):
         cfg = self.config
         force = np.asarray(inp.force, dtype=float)
         previous, self._previous_force = self._previous_force, force.copy()
-        if not ((cfg.lag_inversion or cfg.carry_removal) and located and across is not None):
+        if not (cfg.carry_removal and located and across is not None):
             return inp
         tau = inp.tracking_time_constant
         if previous is None or tau is None or not (math.isfinite(tau) and tau > 0):
@@ -455,13 +451,10 @@ class SteadyDirection(_Base):
         lam = math.exp(-inp.dt / tau)  # the share of the last reading a reading still carries
         across_force, across_dir = across
         last = float(previous @ across_dir)
-        if cfg.lag_inversion:
-            restored = (across_force - lam * last) / (1.0 - lam)
-        else:
-            # the last reading was taken at rest (before the first move): nothing carried
-            if self._readings <= 2 or across_force * last <= 0:
-                return inp  # ... or this one reverses it: as read (never amplified)
-            restored = math.copysign(max(0.0, abs(across_force) - lam * abs(last)), across_force)
+        # the last reading was taken at rest (before the first move): nothing carried
+        if self._readings <= 2 or across_force * last <= 0:
+            return inp  # ... or this one reverses it: as read (never amplified)
+        restored = math.copysign(max(0.0, abs(across_force) - lam * abs(last)), across_force)
         return replace(inp, force=force + (restored - across_force) * across_dir)
 
     def _play_input(
@@ -546,8 +539,15 @@ def make_controller(
     controller's gains (ClassicalGains fields).
     """
     if name == "policy":
-        inner = PolicyController(policy, mirror=True)
-        return SteadyDirection(inner, rotation_rate, name="policy")
+        switches = dict(params or {})
+        mirror = bool(switches.pop("mirror_average", True))
+        known = [f.name for f in fields(SteadyConfig) if f.type in (bool, "bool")]
+        for key in switches:
+            if key not in known:
+                raise UnknownNameError("policy stage", key, ["mirror_average", *known])
+        config = SteadyConfig(**{k: bool(v) for k, v in switches.items()})
+        inner = PolicyController(policy, mirror=mirror)
+        return SteadyDirection(inner, rotation_rate, config, name="policy")
     if name == "policy-raw":
         return PolicyController(policy)
     if name == "fixed":
@@ -563,6 +563,11 @@ def make_controller(
 
 
 CONTROLLERS = ("policy", "policy-raw", "fixed", "projection", "classical")
+#: The stages of controller "policy" that `make_controller`'s params can switch off.
+POLICY_STAGES = (
+    "mirror_average",
+    *(f.name for f in fields(SteadyConfig) if f.type in (bool, "bool")),
+)
 #: The controllers a learned policy drives (the ones `--policy` applies to).
 POLICY_CONTROLLERS = ("policy", "policy-raw")
 
