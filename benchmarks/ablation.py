@@ -14,7 +14,8 @@ controller and the play compensation off: the play is known only after a probe).
 Writes the cells and the cells that differ from the full controller's beyond noise (5 % or
 0.2 N, whichever is larger; any change in successes) to `--out` with provenance, and every
 run to `--runs-out` (not committed: over 200 KB). One process, set by set; the results file
-is rewritten after each set.
+is rewritten after each set. `--append` adds to the runs already in `--runs-out` (a run of
+the same set, row, condition and seed is not run again) and summarizes them all.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from typing import Any
 from constraint_aware.bench.ablation import (
     FULL,
     SETS,
+    AblationJob,
     AblationRun,
     ablation_jobs,
     changes,
@@ -44,6 +46,11 @@ from constraint_aware.policy import ConstraintAwarePolicy
 RESULTS = Path(__file__).parent / "results"
 
 
+def _job_key(job: AblationJob) -> tuple[str, str, str, str, float, float, int]:
+    c = job.condition
+    return job.set, job.row, c.task, c.axis, c.level, c.offset_deg, job.seed
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--suite-seeds", type=int, default=20, help="hook-hand suite seeds")
@@ -54,20 +61,27 @@ def main() -> None:
     parser.add_argument("--sets", default=",".join(SETS), help="comma-separated set names")
     parser.add_argument("--out", type=Path, default=RESULTS / "ablation.json")
     parser.add_argument("--runs-out", type=Path, default=RESULTS / "ablation_runs.json")
+    parser.add_argument("--append", action="store_true", help="add to --runs-out's runs")
     args = parser.parse_args()
     labels = args.rows.split(",")
     probed = [r for r in (FULL, without("play_compensation")) if r in labels]
     policy = ConstraintAwarePolicy.load()
     runs: list[AblationRun] = []
+    if args.append and args.runs_out.is_file():
+        runs = [AblationRun(**r) for r in json.loads(args.runs_out.read_text())]
+    done = {(r.set, r.row, r.task, r.axis, r.level, r.offset_deg, r.seed) for r in runs}
+    # (a run's key, as `_job_key` gives it for a job)
     start = time.perf_counter()
     for name in args.sets.split(","):
         jobs = ablation_jobs(
             labels, args.suite_seeds, args.noise_seeds, args.jaco_seeds, args.map_seeds,
             probed_rows=probed, sets=(name,),
         )  # fmt: skip
+        jobs = [j for j in jobs if _job_key(j) not in done]
         runs.extend(run_job(j, policy) for j in jobs)
         cells = summarize(runs)
-        stages = [s for s in POLICY_STAGES if without(s) in labels]
+        labels_run = list(dict.fromkeys(r.row for r in runs))
+        stages = [s for s in POLICY_STAGES if without(s) in labels_run]
         data: dict[str, Any] = {
             "policy": policy.name,
             "seeds": {
@@ -76,7 +90,7 @@ def main() -> None:
                 "jaco suite": args.jaco_seeds,
                 "map": args.map_seeds,
             },
-            "rows": labels,
+            "rows": labels_run,
             "stages": stages,
             "wall_time_s": time.perf_counter() - start,
             "cells": [dataclasses.asdict(c) for c in cells],

@@ -50,7 +50,7 @@ JACO_SUITE = "jaco suite"
 MAP = "resistance map"
 #: The hook hand's paper offsets after a setup probe (`cap run --probe`): the only set where
 #: the grasp's play is known, so the only one where the play compensation can act.
-HOOK_PAPER_PROBED = "hook-hand paper offsets, probed"
+HOOK_PAPER_PROBED = "hook-hand paper offsets after a probe"
 SETS = (HOOK_SUITE, HOOK_PAPER, JACO_SUITE, MAP, HOOK_PAPER_PROBED)
 
 
@@ -124,13 +124,14 @@ def ablation_jobs(
     jaco_seeds: int,
     map_seeds: int,
     probed_rows: Sequence[str] = (),
-    quick_map: bool = False,
+    quick: bool = False,
     sets: Sequence[str] = SETS,
 ) -> list[AblationJob]:
     """Every run of the ablation, set by set. suite_seeds / jaco_seeds: randomized suite
     seeds per task (bench.sweep.suite_specs draws); noise_seeds: sensor-noise seeds per paper
-    offset; map_seeds: seeds per resistance-map condition (quick_map: its one quick
-    condition); probed_rows: the rows run on the probed paper offsets (none: no such set)."""
+    offset; map_seeds: seeds per resistance-map condition; quick: the paper offsets' and the
+    map's quick conditions (`analysis.paper_offset_conditions`, `resistance_map`);
+    probed_rows: the rows run on the probed paper offsets (none: no such set)."""
     jobs: list[AblationJob] = []
 
     def add(name: str, conds: Iterable[tuple[Condition, int]], labels: Sequence[str]) -> None:
@@ -140,11 +141,11 @@ def ablation_jobs(
         probe = name == HOOK_PAPER_PROBED
         jobs.extend(AblationJob(name, r, c, s, robot, probe) for c, s in conds for r in labels)
 
-    paper = [(c, s) for c in paper_offset_conditions() for s in range(noise_seeds)]
+    paper = [(c, s) for c in paper_offset_conditions(quick) for s in range(noise_seeds)]
     add(HOOK_SUITE, suite_conditions(suite_seeds), row_labels)
     add(HOOK_PAPER, paper, row_labels)
     add(JACO_SUITE, suite_conditions(jaco_seeds), row_labels)
-    add(MAP, [(c, s) for c in resistance_map(quick_map) for s in range(map_seeds)], row_labels)
+    add(MAP, [(c, s) for c in resistance_map(quick) for s in range(map_seeds)], row_labels)
     if probed_rows:
         add(HOOK_PAPER_PROBED, paper, probed_rows)
     return jobs
@@ -316,12 +317,12 @@ BENCH_SEEDS = {"suite": 1, "noise": 1, "jaco": 1, "map": 1}
 
 
 def ablation_section(quick: bool = False, workers: int | None = None) -> AblationSection:
-    """The bench's ablation: every row on one seed of each set (quick: the hook hand's
-    paper offsets on one seed and the resistance map's quick condition)."""
+    """The bench's ablation: every row on `BENCH_SEEDS` of each set (quick: the hook hand's
+    drawer at +30 deg and door at +15 deg, noise seed 0)."""
     labels = rows()
     if quick:
-        jobs = ablation_jobs(labels, 0, 1, 0, 1, quick_map=True, sets=(HOOK_PAPER, MAP))
-        seeds = {HOOK_PAPER: "noise seed 0", MAP: "the 8x door friction, seed 0"}
+        jobs = ablation_jobs(labels, 0, 1, 0, 0, quick=True, sets=(HOOK_PAPER,))
+        seeds = {HOOK_PAPER: "the drawer at +30 deg and the door at +15 deg, noise seed 0"}
     else:
         s = BENCH_SEEDS
         jobs = ablation_jobs(labels, s["suite"], s["noise"], s["jaco"], s["map"], sets=SETS[:4])
