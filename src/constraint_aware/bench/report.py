@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from constraint_aware.bench.ablation import FULL, AblationCell, AblationSection, beyond_noise
 from constraint_aware.bench.analysis import CellSummary, PolicySection
 from constraint_aware.bench.placement import report_lines as placement_report_lines
 
@@ -250,6 +251,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
         add("")
     if "policy_section" in results:
         lines.extend(policy_section_lines(PolicySection.from_dict(results["policy_section"])))
+    if "ablation" in results:
+        lines.extend(ablation_lines(AblationSection.from_dict(results["ablation"]), figures))
     if results.get("faults"):
         _faults_section(add, results["faults"], results["learning"]["policy"])
     path = out / "report.md"
@@ -312,6 +315,55 @@ def policy_section_lines(sec: PolicySection) -> list[str]:
     )
     lines.append("")
     return lines
+
+
+def ablation_lines(sec: AblationSection, figures: dict[str, str] | None = None) -> list[str]:
+    """The ablation section: per set, one row per stage of controller "policy" switched off
+    (everything else on) beside the full controller and the paper's rule alone."""
+    lines = [
+        "## The default controller's stages, each switched off\n",
+        "Controller `policy` with one stage off and every other stage on (`policy without "
+        "STAGE`), beside the full controller and `policy-raw` (the paper's rule alone; "
+        "docs/design/default-controller.md says what each stage does). Sensor noise "
+        f"{_f(sec.sensor_noise_N, 1)} N per axis, the dead band derived from it. This bench "
+        "runs "
+        + "; ".join(f"{name}: {what}" for name, what in sec.seeds.items())
+        + ". The full sets (20 suite seeds per task on each robot, 10 noise seeds per paper "
+        "offset, 2 seeds per resistance-map condition) are `benchmarks/ablation.py`'s, in "
+        "`benchmarks/results/ablation.json`. Cells: successes / runs, median peak |F| [N], "
+        "median of the runs' mean |F| [N]; **bold**: beyond noise (5 % or 0.2 N, whichever is "
+        "larger, or any change in successes) against the full controller.\n",
+    ]
+    if figures and "ablation" in figures:
+        lines.append(f"![ablation]({figures['ablation']})\n")
+    for set_name in dict.fromkeys(c.set for c in sec.cells):
+        cells = [c for c in sec.cells if c.set == set_name]
+        tasks = list(dict.fromkeys(c.task for c in cells))
+        by = {(c.row, c.task): c for c in cells}
+        lines.append(f"### {set_name}\n")
+        lines.append("| row | " + " | ".join(tasks) + " |")
+        lines.append("|---" * (len(tasks) + 1) + "|")
+        for row in sec.rows:
+            entries = [
+                _ablation_cell(by[(row, t)], by.get((FULL, t))) if (row, t) in by else ""
+                for t in tasks
+            ]
+            if any(entries):
+                lines.append(f"| {row} | " + " | ".join(entries) + " |")
+        lines.append("")
+    return lines
+
+
+def _ablation_cell(c: AblationCell, full: AblationCell | None) -> str:
+    text = f"{c.successes}/{c.n}, {_f(c.median_peak_force_N, 2)}, {_f(c.median_mean_force_N, 2)}"
+    if full is None or c.row == FULL:
+        return text
+    differs = (
+        c.successes != full.successes
+        or beyond_noise(c.median_peak_force_N, full.median_peak_force_N)
+        or beyond_noise(c.median_mean_force_N, full.median_mean_force_N)
+    )
+    return f"**{text}**" if differs else text
 
 
 def _fmt_level(v: float) -> str:
