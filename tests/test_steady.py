@@ -597,7 +597,9 @@ def _closed_loop(
         sensor_noise=0.1, overrides=cond.overrides,
     )  # fmt: skip
     prep = prepare_condition(cond, spec, threshold_from_noise(0.1))
-    ctrl = make_controller("policy", POLICY, prep.rotation_rate, prep.normal, params)
+    ctrl: DirectionController = make_controller(
+        "policy", POLICY, prep.rotation_rate, prep.normal, params
+    )
     if hold:
         ctrl = _HoldAfterFirstMove(ctrl)
     return Executor(prep.sim, ctrl, prep.config, monitor=prep.sim).run(prep.d0)

@@ -12,7 +12,12 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.classical import ClassicalController, ClassicalGains
-from constraint_aware.control.interface import INPUT_NAMES, ControlInput, DirectionController
+from constraint_aware.control.interface import (
+    INPUT_NAMES,
+    ControlInput,
+    DirectionController,
+    StagedController,
+)
 from constraint_aware.control.steady import STEADY_STAGES, SteadyConfig, SteadyDirection
 from constraint_aware.errors import ConfigError, UnknownNameError
 from constraint_aware.geometry import FloatArray, normalize_force, unit, update_direction_rule
@@ -28,6 +33,7 @@ __all__ = [
     "FixedDirection",
     "PolicyController",
     "ProjectionController",
+    "StagedController",
     "driving_policy",
     "make_controller",
     "project_on_plane",
@@ -130,7 +136,7 @@ def make_controller(
     rotation_rate: float | None = None,
     rotation_axis: FloatArray | None = None,
     params: dict[str, float] | None = None,
-) -> DirectionController:
+) -> StagedController:
     """A controller by name: policy, policy-raw, fixed, projection or classical.
 
     "policy" is the learned policy as this library runs it: its action mirror-averaged about

@@ -97,3 +97,13 @@ class DirectionController(Protocol):
         """This step's hand rotation if the controller decides it; None: the executor's rule
         (paper 3.4.1 on revolute constraints, or the torque policy)."""
         ...
+
+
+class StagedController(DirectionController, Protocol):
+    """A `DirectionController` that says what its stages need (every controller
+    `make_controller` builds is one)."""
+
+    def stage_inputs(self, constraint_type: str) -> dict[str, tuple[str, ...]]:
+        """For each stage acting on `constraint_type` ("prismatic" or "revolute"), the
+        `INPUT_NAMES` it needs ({} for a controller without stages)."""
+        ...
