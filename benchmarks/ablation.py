@@ -29,6 +29,7 @@ from typing import Any
 
 from constraint_aware.bench.ablation import (
     FULL,
+    PLAY_STAGE,
     SETS,
     AblationJob,
     AblationRun,
@@ -64,7 +65,7 @@ def main() -> None:
     parser.add_argument("--append", action="store_true", help="add to --runs-out's runs")
     args = parser.parse_args()
     labels = args.rows.split(",")
-    probed = [r for r in (FULL, without("play_compensation")) if r in labels]
+    probed = [r for r in (FULL, without(PLAY_STAGE)) if r in labels]
     policy = ConstraintAwarePolicy.load()
     runs: list[AblationRun] = []
     if args.append and args.runs_out.is_file():

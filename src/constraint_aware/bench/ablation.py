@@ -17,6 +17,7 @@ band derived from the sensor noise); the Jaco's as `simulate.run` does. Typed fr
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Iterable, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor
@@ -38,6 +39,7 @@ from constraint_aware.control.controllers import POLICY_STAGES, make_controller
 from constraint_aware.control.executor import Executor as ControlExecutor
 from constraint_aware.control.simulate import RunSpec, probed_config, run
 from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.sim.tasks import task_config
 
 #: The full default controller, the paper's rule alone and the classical controller.
 FULL, RAW, CLASSICAL = "policy", "policy-raw", "classical"
@@ -62,6 +64,29 @@ def without(stage: str) -> str:
 def rows(stages: Sequence[str] = POLICY_STAGES) -> tuple[str, ...]:
     """Every row: the full controller, the paper's rule, classical, then one per stage."""
     return (FULL, RAW, CLASSICAL, *(without(s) for s in stages))
+
+
+#: The stage that acts only when the grasp's play is known: after a setup probe.
+PLAY_STAGE = "play_compensation"
+
+
+def acts(row: str, task: str, probed: bool = False) -> bool:
+    """Whether a row can differ from the full controller on `task` at all. A stage that does
+    not act on the task's constraint type (`stage_inputs`: the known rotation on a prismatic
+    joint), or the play compensation without a probe (no play is known), leaves the full
+    controller's runs as they are, so its row is not run there."""
+    _, switches = _controller(row)
+    if not switches:
+        return True
+    stage = switches[0][0]
+    if stage == PLAY_STAGE and not probed:
+        return False
+    return stage in _acting_stages(task_config(task).constraint_type)
+
+
+@functools.cache
+def _acting_stages(constraint_type: str) -> tuple[str, ...]:
+    return tuple(make_controller(FULL).stage_inputs(constraint_type))
 
 
 def _controller(row: str) -> tuple[str, tuple[tuple[str, float], ...]]:
@@ -139,7 +164,12 @@ def ablation_jobs(
             return
         robot = "jaco" if name == JACO_SUITE else "hook-hand"
         probe = name == HOOK_PAPER_PROBED
-        jobs.extend(AblationJob(name, r, c, s, robot, probe) for c, s in conds for r in labels)
+        jobs.extend(
+            AblationJob(name, r, c, s, robot, probe)
+            for c, s in conds
+            for r in labels
+            if acts(r, c.task, probe)
+        )
 
     paper = [(c, s) for c in paper_offset_conditions(quick) for s in range(noise_seeds)]
     add(HOOK_SUITE, suite_conditions(suite_seeds), row_labels)
