@@ -22,6 +22,8 @@ from constraint_aware.bench.ablation import (
     AblationRun,
     AblationSection,
     ablation_jobs,
+    acts,
+    bench_jobs,
     beyond_noise,
     changes,
     rows,
@@ -56,6 +58,25 @@ def test_jobs_cover_each_set_and_the_probed_set_only_its_rows() -> None:
     assert not any(j.probe for s in SETS[:4] for j in by_set[s])
     quick = ablation_jobs([FULL], 0, 1, 0, 0, quick=True, sets=(HOOK_PAPER,))
     assert len(quick) == 2
+
+
+def test_a_row_is_run_only_where_its_stage_can_act() -> None:
+    """The known rotation acts on revolute joints only, the play compensation only when the
+    play is known (after a probe): elsewhere the row would repeat the full controller's runs."""
+    rotation, play = without("rotation_feedforward"), without("play_compensation")
+    assert acts(rotation, "door-opening") and not acts(rotation, "drawer-opening")
+    assert not acts(play, "drawer-opening") and acts(play, "drawer-opening", probed=True)
+    assert acts(FULL, "drawer-opening") and acts(without("travel_scaling"), "door-opening")
+
+
+def test_the_bench_runs_a_few_of_every_set_and_quick_a_handful() -> None:
+    labels = [r for r in rows() if r != CLASSICAL]
+    jobs = bench_jobs(labels)
+    assert {j.set for j in jobs} == set(SETS[:4])
+    assert {j.seed for j in jobs} == {0}
+    assert len(jobs) < 120
+    quick = bench_jobs(labels, quick=True)
+    assert {j.set for j in quick} == {HOOK_PAPER} and len(quick) <= 16
 
 
 def test_summaries_do_not_depend_on_the_order_of_the_runs() -> None:

@@ -332,7 +332,10 @@ def ablation_lines(sec: AblationSection, figures: dict[str, str] | None = None) 
         "offset, 2 seeds per resistance-map condition) are `benchmarks/ablation.py`'s, in "
         "`benchmarks/results/ablation.json`. Cells: successes / runs, median peak |F| [N], "
         "median of the runs' mean |F| [N]; **bold**: beyond noise (5 % or 0.2 N, whichever is "
-        "larger, or any change in successes) against the full controller.\n",
+        "larger, or any change in successes) against the full controller; `-`: not run, the "
+        "stage cannot act there (the known rotation on a prismatic joint; the play "
+        "compensation, which needs the play a setup probe measures, has its numbers in the "
+        "benchmark's results).\n",
     ]
     if figures and "ablation" in figures:
         lines.append(f"![ablation]({figures['ablation']})\n")
@@ -345,10 +348,10 @@ def ablation_lines(sec: AblationSection, figures: dict[str, str] | None = None) 
         lines.append("|---" * (len(tasks) + 1) + "|")
         for row in sec.rows:
             entries = [
-                _ablation_cell(by[(row, t)], by.get((FULL, t))) if (row, t) in by else ""
+                _ablation_cell(by[(row, t)], by.get((FULL, t))) if (row, t) in by else "-"
                 for t in tasks
             ]
-            if any(entries):
+            if any(e != "-" for e in entries):
                 lines.append(f"| {row} | " + " | ".join(entries) + " |")
         lines.append("")
     return lines
