@@ -319,13 +319,21 @@ def changes(cells: Iterable[AblationCell], stages: Sequence[str]) -> list[Change
 
 @dataclass(frozen=True)
 class AblationSection:
-    """Everything the report's ablation section shows. seeds: per set, what its runs cover."""
+    """Everything the report's ablation section shows. seeds: per set, what its runs cover;
+    benchmark_seeds: what benchmarks/ablation.py runs instead ("suite": suite seeds per task
+    on each robot, "noise": noise seeds per paper offset, "map": seeds per map condition);
+    noise_percent [%] and noise_floor_N [N]: the tie rule (`beyond_noise`)."""
 
     stages: tuple[str, ...]
     rows: tuple[str, ...]
     seeds: dict[str, str]
     sensor_noise_N: float
     cells: list[AblationCell]
+    benchmark_seeds: dict[str, int] = dataclasses.field(
+        default_factory=lambda: {"suite": 20, "noise": 10, "map": 2}
+    )
+    noise_percent: float = 100.0 * NOISE_SHARE
+    noise_floor_N: float = NOISE_FLOOR_N
 
     def to_dict(self) -> dict[str, Any]:
         return dataclasses.asdict(self)
@@ -338,6 +346,9 @@ class AblationSection:
             seeds=dict(data["seeds"]),
             sensor_noise_N=float(data["sensor_noise_N"]),
             cells=[AblationCell(**c) for c in data["cells"]],
+            benchmark_seeds=dict(data["benchmark_seeds"]),
+            noise_percent=float(data["noise_percent"]),
+            noise_floor_N=float(data["noise_floor_N"]),
         )
 
 

@@ -320,6 +320,7 @@ def policy_section_lines(sec: PolicySection) -> list[str]:
 def ablation_lines(sec: AblationSection, figures: dict[str, str] | None = None) -> list[str]:
     """The ablation section: per set, one row per stage of controller "policy" switched off
     (everything else on) beside the full controller and the paper's rule alone."""
+    b = sec.benchmark_seeds
     lines = [
         "## The default controller's stages, each switched off\n",
         "Controller `policy` with one stage off and every other stage on (`policy without "
@@ -328,11 +329,12 @@ def ablation_lines(sec: AblationSection, figures: dict[str, str] | None = None) 
         f"{_f(sec.sensor_noise_N, 1)} N per axis, the dead band derived from it. This bench "
         "runs "
         + "; ".join(f"{name}: {what}" for name, what in sec.seeds.items())
-        + ". The full sets (20 suite seeds per task on each robot, 10 noise seeds per paper "
-        "offset, 2 seeds per resistance-map condition) are `benchmarks/ablation.py`'s, in "
-        "`benchmarks/results/ablation.json`. Cells: successes / runs, median peak |F| [N], "
-        "median of the runs' mean |F| [N]; **bold**: beyond noise (5 % or 0.2 N, whichever is "
-        "larger, or any change in successes) against the full controller; `-`: not run, the "
+        + f". The full sets ({b['suite']} suite seeds per task on each robot, {b['noise']} "
+        f"noise seeds per paper offset, {b['map']} seeds per resistance-map condition) are "
+        "`benchmarks/ablation.py`'s, in `benchmarks/results/ablation.json`. Cells: successes / "
+        "runs, median peak |F| [N], median of the runs' mean |F| [N]; **bold**: beyond noise "
+        f"({_f(sec.noise_percent, 0)} % or {_f(sec.noise_floor_N, 1)} N, whichever is larger, "
+        "or any change in successes) against the full controller; `-`: not run, the "
         "stage cannot act there (the known rotation on a prismatic joint; the play "
         "compensation, which needs the play a setup probe measures, has its numbers in the "
         "benchmark's results).\n",
