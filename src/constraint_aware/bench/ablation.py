@@ -215,8 +215,14 @@ def run_job(job: AblationJob, policy: ConstraintAwarePolicy | None = None) -> Ab
     )
 
 
+@functools.cache
+def _default_policy() -> ConstraintAwarePolicy:
+    """The shipped default policy, loaded once per worker process."""
+    return ConstraintAwarePolicy.load()
+
+
 def _run_job_default(job: AblationJob) -> AblationRun:
-    return run_job(job)
+    return run_job(job, _default_policy())
 
 
 def run_jobs(jobs: Sequence[AblationJob], workers: int | None = None) -> list[AblationRun]:
@@ -227,8 +233,7 @@ def run_jobs(jobs: Sequence[AblationJob], workers: int | None = None) -> list[Ab
         return gather_in_order(executor, _run_job_default, jobs)
     n = workers or default_workers(len(jobs))
     if n <= 1:
-        policy = ConstraintAwarePolicy.load()
-        return [run_job(j, policy) for j in jobs]
+        return [_run_job_default(j) for j in jobs]
     with ProcessPoolExecutor(max_workers=min(n, len(jobs))) as pool:
         return gather_in_order(pool, _run_job_default, jobs)
 
