@@ -16,6 +16,7 @@ import numpy as np
 
 from constraint_aware.control.controllers import driving_policy, make_controller
 from constraint_aware.control.executor import Executor
+from constraint_aware.control.executor_config import GoalConfig
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.simulate import RunSpec, executor_config, simulated_robot
 from constraint_aware.errors import CapError
@@ -68,7 +69,7 @@ def execute(
     with the simulated object's truth.
 
     robot: the embodiment that executes it, a robot spec (sim.embodiment: "hook-hand", "jaco",
-    "jaco:stiffness=5000,period=0.05"); an unknown name or variant raises UnknownNameError or
+    "jaco:stiffness=2000,period=0.1"); an unknown name or variant raises UnknownNameError or
     InvalidInputError naming the valid ones, before anything is built.
     Raises CapError (UncertainEstimateError) before anything moves when the constraint is
     unknown or the estimates are too uncertain for the grasp (lfo/plausibility.py).
@@ -110,10 +111,12 @@ def execute(
             float(skill.workplane_normal[1]),
             float(skill.workplane_normal[2]),
         ),
-        torque_policy=bool(skill.fixed_orientation) and skill.constraint_type == "revolute",
+        torque_policy=dataclasses.replace(
+            base.torque_policy,
+            enabled=bool(skill.fixed_orientation) and skill.constraint_type == "revolute",
+        ),
         rotation_radius=radius,
-        goal_travel=goal_travel,
-        goal_rotation=goal_rotation,
+        goal=GoalConfig(travel=goal_travel, rotation=goal_rotation),
     )
     rate = None
     if cfg.constraint_type == "revolute" and radius:
@@ -128,7 +131,7 @@ def execute(
         "controller": ctrl.name,
         "offset_deg": float(angle_deg(d0, truth_d)),
         "seed": seed,
-        "torque_policy": cfg.torque_policy,
+        "torque_policy": cfg.torque_policy.enabled,
         "sensor_noise_N": sensor_noise,
         "success_progress": task.success_progress,
         "constraint_type": task.constraint_type,
