@@ -1,7 +1,9 @@
 """What a direction controller sees each control step, and what it must provide.
 
 Every controller module imports these (and nothing of the other controllers), so the
-controllers and the registry that builds them by name form no import cycle.
+controllers and the registry that builds them by name form no import cycle. `INPUT_NAMES`,
+the run inputs a stage may need, has its home in `control.run_inputs`, where the executor
+gathers and records them; it is re-exported here for the controllers.
 """
 
 from __future__ import annotations
@@ -11,19 +13,10 @@ from typing import Protocol
 
 from scipy.spatial.transform import Rotation
 
+from constraint_aware.control.run_inputs import INPUT_NAMES
 from constraint_aware.geometry import FloatArray
 
-#: The optional run inputs a controller's stages may need (`stage_inputs`): the robot's step
-#: force k*delta [N], its tracking time constant tau [s], the workplane normal (assumption 4),
-#: the known rotation rate w = v / r [rad/s] of a revolute joint, and the force the grasp's
-#: play hides k*p [N].
-INPUT_NAMES = (
-    "step_force",
-    "tracking_time_constant",
-    "workplane_normal",
-    "rotation_rate",
-    "play_force",
-)
+__all__ = ["INPUT_NAMES", "ControlInput", "DirectionController", "StagedController"]
 
 
 @dataclass(frozen=True)
