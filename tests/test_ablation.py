@@ -135,7 +135,7 @@ def test_the_section_survives_json_and_the_report_and_figure_read_only_it(
     text = "\n".join(lines)
     assert "| policy without travel_scaling | **1/1, 5.60, 1.50** |" in text  # beyond noise
     assert "| policy | 1/1, 4.60, 1.50 |" in text
-    assert "benchmarks/results/ablation.json" in text
+    assert "benchmarks/results/ablation_every_stage.json" in text
 
 
 def test_a_job_runs_the_row_it_names() -> None:

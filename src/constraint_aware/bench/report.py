@@ -334,7 +334,8 @@ def ablation_lines(sec: AblationSection, figures: dict[str, str] | None = None) 
         + "; ".join(f"{name}: {what}" for name, what in sec.seeds.items())
         + f". The full sets ({b['suite']} suite seeds per task on each robot, {b['noise']} "
         f"noise seeds per paper offset, {b['map']} seeds per resistance-map condition) are "
-        "`benchmarks/ablation.py`'s, in `benchmarks/results/ablation.json`. Cells: successes / "
+        "`benchmarks/ablation.py`'s; the run that decided which stages stay is "
+        "`benchmarks/results/ablation_every_stage.json`. Cells: successes / "
         "runs, median peak |F| [N], median of the runs' mean |F| [N]; **bold**: beyond noise "
         f"({_f(sec.noise_percent, 0)} % or {_f(sec.noise_floor_N, 1)} N, whichever is larger, "
         "or any change in successes) against the full controller; `-`: not run, the "
