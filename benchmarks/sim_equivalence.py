@@ -1,12 +1,13 @@
 """Do two versions of the package simulate the same physics? Outcomes and forces, run by run.
 
     python benchmarks/sim_equivalence.py --reference PATH/TO/OTHER/src [--candidate src]
-        [--seeds 20] [--robots hook-hand,jaco] [--out benchmarks/results/sim_equivalence.json]
+        [--seeds 20] [--robots hook-hand,jaco] [--controllers policy,classical]
+        [--out benchmarks/results/sim_equivalence.json]
 
 Runs the same specs on both source trees (each in its own subprocess, `PYTHONPATH` set to
 the tree, one worker process each, one after the other) and compares them:
 - the randomized suites (bench/sweep.py `suite_specs`: `--seeds` seeds x 5 tasks) with the
-  controllers policy and classical, and the paper's conditions (bench/experiments.py
+  `--controllers` (default policy and classical), and the paper's conditions (bench/experiments.py
   `paper_specs`), on every robot in `--robots`;
 - every run's outcome must be identical;
 - per (robot, task, controller) group, the median peak |F| and the median mean |F| must agree
@@ -54,7 +55,7 @@ PERTURBATIONS = 4  # of each kind, for a run that differs (module docstring)
 FIELDS = ("peak_force_N", "mean_force_N")
 
 
-def specs(seeds: int, robots: list[str]) -> list[Any]:
+def specs(seeds: int, robots: list[str], controllers: tuple[str, ...] = CONTROLLERS) -> list[Any]:
     """The runs compared: suites and the paper's conditions on every robot."""
     import dataclasses
 
@@ -63,7 +64,7 @@ def specs(seeds: int, robots: list[str]) -> list[Any]:
 
     out = []
     for robot in robots:
-        out += [dataclasses.replace(s, robot=robot) for s in suite_specs(seeds, CONTROLLERS)]
+        out += [dataclasses.replace(s, robot=robot) for s in suite_specs(seeds, controllers)]
         out += list(paper_specs(robot).values())
     return out
 
@@ -302,6 +303,9 @@ def main() -> None:
     parser.add_argument("--candidate-runs", type=Path, help="a --collect file instead")
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--robots", default="hook-hand,jaco")
+    parser.add_argument(
+        "--controllers", default=",".join(CONTROLLERS), help="the suites' controllers"
+    )
     parser.add_argument("--collect", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--specs", type=Path, help=argparse.SUPPRESS)
     parser.add_argument("--bench", type=Path, nargs=2, help="two cap bench results.json files")
@@ -314,16 +318,17 @@ def main() -> None:
         print(json.dumps(compare_bench(a, b), indent=1))
         return
     robots = args.robots.split(",")
+    controllers = tuple(args.controllers.split(","))
     if args.collect is not None:  # the subprocess: this tree's package
         if args.specs is not None:
             todo = [_resolve_mass(_spec(s)) for s in json.loads(args.specs.read_text())]
         else:
-            todo = specs(args.seeds, robots)
+            todo = specs(args.seeds, robots, controllers)
         collect(todo, args.collect)
         return
     import dataclasses
 
-    everything = [dataclasses.asdict(s) for s in specs(args.seeds, robots)]
+    everything = [dataclasses.asdict(s) for s in specs(args.seeds, robots, controllers)]
     trees = {"reference": args.reference, "candidate": args.candidate}
     runs = {"reference": args.reference_runs, "candidate": args.candidate_runs}
     loaded = {}
@@ -343,7 +348,7 @@ def main() -> None:
     result = {
         "seeds": args.seeds,
         "robots": robots,
-        "controllers": list(CONTROLLERS),
+        "controllers": list(controllers),
         "perturbations": {"initial_direction_deg": 1e-9, "mass_ulps": 1, "each": PERTURBATIONS},
         **compare(loaded["reference"], loaded["candidate"], rerun),
         "load_average_1min_at_end": os.getloadavg()[0],
