@@ -5,7 +5,8 @@ Everything here works on a single vector of shape (3,) or on a batch of shape (N
 The executor calls these once or more per control period on single vectors, where numpy's
 per-call overhead (np.cross, np.linalg.norm, np.all(np.isfinite(...))) exceeds the arithmetic
 many times over: single vectors take a path in Python floats with the same operations in the
-same order as numpy's, so both paths give the same floats.
+same order as numpy's, so both paths give the same floats (`angle_deg`, a reported quantity,
+uses math's atan2 and may differ from the batched path in the last place).
 """
 
 from __future__ import annotations
