@@ -30,6 +30,7 @@ from constraint_aware.errors import (
 )
 from constraint_aware.geometry import (
     FloatArray,
+    all_finite,
     as_vector,
     cross,
     norm,
@@ -483,6 +484,11 @@ def _vector(value: ArrayLike, name: str) -> FloatArray:
     """`value` as (3,) finite real floats whose norm is finite; InvalidInputError naming `name`
     otherwise (a complex value would lose its imaginary part, an overflowing norm would turn
     the vector into an unrelated direction)."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (3,):
+        # the executor's own readings, every control period: only the values to check
+        if not all_finite(value):
+            raise InvalidInputError(f"{name}: contains NaN or inf")
+        return _finite_norm(value, name)
     if np.iscomplexobj(value):
         raise InvalidInputError(f"{name}: complex values; expected 3 real numbers")
     return _finite_norm(as_vector(value, name), name)
