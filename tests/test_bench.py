@@ -264,3 +264,19 @@ def test_learning_section_of_a_policy_file_with_and_without_its_log(tmp_path: Pa
     le = ex.learning(out, ConstraintAwarePolicy.load(path), path)
     assert le["has_log"] and le["log_points"] > 0
     assert (out / "training_log.csv").read_text() == shipped_log_path("paper").read_text()
+
+
+def test_a_sweep_prints_each_run_input_warning_once(caplog: pytest.LogCaptureFixture) -> None:
+    import logging
+
+    from constraint_aware.bench.run import _each_warning_once
+
+    logger = logging.getLogger("constraint_aware")
+    with caplog.at_level(logging.WARNING, logger="constraint_aware"), _each_warning_once():
+        for _ in range(5):
+            logger.warning("play_force missing: stage play_compensation off")
+        logger.warning("rotation_rate missing: stage rotational_part off")
+    logger.warning("play_force missing: stage play_compensation off")  # after the sweep: again
+    messages = [r.getMessage() for r in caplog.records]
+    assert messages.count("play_force missing: stage play_compensation off") == 2
+    assert messages.count("rotation_rate missing: stage rotational_part off") == 1

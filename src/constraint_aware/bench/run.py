@@ -7,13 +7,15 @@ stderr at the start and in the report, instead of failing at the end of a long r
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
+import logging
 import math
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -277,14 +279,45 @@ def run_bench(
     skipped = preflight(cfg)
     for line in skipped.values():
         on_skip(line)
-    if scheduler is None:  # one pool for every section: its workers keep their caches
-        with local_pool(workers) as pool, use_executor(pool):
+    with _each_warning_once():
+        if scheduler is None:  # one pool for every section: its workers keep their caches
+            with local_pool(workers) as pool, use_executor(pool):
+                return _run_bench(out, cfg, loaded, policy, skipped)
+        with (
+            dask_executor(scheduler, local_workers=workers) as (executor, threads),
+            use_executor(executor),
+        ):
+            cfg = dataclasses.replace(cfg, workers=threads)
             return _run_bench(out, cfg, loaded, policy, skipped)
-    with (
-        dask_executor(scheduler, local_workers=workers) as (executor, threads),
-        use_executor(executor),
-    ):
-        return _run_bench(out, dataclasses.replace(cfg, workers=threads), loaded, policy, skipped)
+
+
+class _OncePerMessage(logging.Filter):
+    """Lets each distinct message through once: a sweep repeats the same run-input warning
+    for every run that lacks the input (each run's record still lists it)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        if message in self._seen:
+            return False
+        self._seen.add(message)
+        return True
+
+
+@contextlib.contextmanager
+def _each_warning_once() -> Iterator[None]:
+    """The package's warnings once per distinct message (per process: the pool's workers are
+    forked after this is installed) for the duration of the block."""
+    logger = logging.getLogger("constraint_aware")
+    once = _OncePerMessage()
+    logger.addFilter(once)
+    try:
+        yield
+    finally:
+        logger.removeFilter(once)
 
 
 def _run_bench(
