@@ -4,10 +4,11 @@ inputs refuse a run that lacks one, and a dead or frozen sensor stops the run `s
 `Guide`: a hand on a guide along U that a spring of RESIST N/m pulls back (a spring-loaded
 drawer), on an arm of stiffness K that settles within a period: along U the hand stops where
 the arm's pull balances the spring, across U it stays on the guide, so the force on the hand
-is K times the arm's deflection, growing with the travel. The hand senses contact. The sensor adds Gaussian noise of SIGMA per axis and
-can fail after ONSET periods: "dead" (fresh noise around the tare), "jitter" (the last reading
-held with 1e-9 N of jitter) or "frozen" (the last reading held exactly). It reports nothing
-optional unless told to (a stripped robot).
+is K times the arm's deflection, growing with the travel. The hand senses contact. The
+sensor adds Gaussian noise of SIGMA per axis and can fail after ONSET periods: "dead" (fresh
+noise around the tare), "jitter" (the last reading held with 1e-9 N of jitter) or "frozen"
+(the last reading held exactly). It reports nothing optional unless told to (a stripped
+robot).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.controllers import FixedDirection
 from constraint_aware.control.executor import Executor, ExecutorConfig
-from constraint_aware.control.executor_config import GoalConfig, LimitsConfig, RobotOverrides
+from constraint_aware.control.executor_config import GoalConfig, LimitsConfig
 from constraint_aware.control.profile import (
     QUANTITIES,
     QUANTITY_NAMES,
@@ -286,9 +287,7 @@ def test_an_exactly_repeated_reading_is_still_a_stale_wrench() -> None:
 def test_a_healthy_sensor_is_never_judged_dead(seed: int) -> None:
     """Noise at the calibrated sigma, pushing into the guide or along it: no false stop."""
     for offset in (0.0, 25.0):
-        rec = Executor(Guide(seed=seed), FixedDirection(), GOAL, profile=profile()).run(
-            d0(offset)
-        )
+        rec = Executor(Guide(seed=seed), FixedDirection(), GOAL, profile=profile()).run(d0(offset))
         assert rec.outcome != "sensor_dead", rec.reason
 
 
@@ -311,7 +310,7 @@ def test_the_gym_task_env_passes_its_profile_to_every_episode() -> None:
     assert env.executor is not None and env.executor.profile is env.profile
     assert env._record is not None
     assert env._record.inputs["step_force"]["source"] == "profile"
-    with pytest.raises(ConfigError, match="TaskEnv.profile"):
+    with pytest.raises(ConfigError, match=r"TaskEnv\.profile"):
         TaskEnv("drawer-opening", profile="hook.json")  # type: ignore[arg-type]
 
 
