@@ -350,7 +350,8 @@ IN_RANGE = {
 LOCKED = (("object__joint_range", (-1e-5, 1e-5)), ("object__frictionloss", 1000.0))
 SETTLE_PERIODS = 15  # control periods held at each static level (the arms settle in < 0.5 s)
 CONTACT_STEP = 0.00025  # [m] the setpoint's steps while looking for contact
-CONTACT_TRAVEL = 0.005  # [m] no contact within this: the direction is not blocked
+CONTACT_TRAVEL = 0.005  # [m] no contact within this plus 2 N worth of the nominal stiffness:
+# the direction is not blocked
 
 
 def tool_point_stiffness(robot: str, stiffness: float, task: str) -> dict[str, Any]:
@@ -358,8 +359,8 @@ def tool_point_stiffness(robot: str, stiffness: float, task: str) -> dict[str, A
     pushes of known size in four workplane directions from rest, each held SETTLE_PERIODS
     periods, the noise-free wrist force read (`true_wrench`). In each direction the setpoint
     first steps out by CONTACT_STEP until the force has changed by 1 N from rest (contact,
-    past any play in the grasp; none within CONTACT_TRAVEL: not blocked, the hook's open
-    side), then holds two levels 3 N and 6 N worth of the nominal stiffness beyond that.
+    past any play in the grasp; none within CONTACT_TRAVEL + 2 N / k: not blocked, the
+    hook's open side), then holds two levels 3 N and 6 N worth of the nominal stiffness beyond that.
     Per blocked direction: k_command = |F_B - F_A| / |setpoint_B - setpoint_A| (the
     force per blocked step, what the controller's k x step means) and k_stretch = |F_B - F_A|
     / |stretch_B - stretch_A| (stretch = setpoint - measured tool point, what the calibration
@@ -380,7 +381,7 @@ def tool_point_stiffness(robot: str, stiffness: float, task: str) -> dict[str, A
     rest, _x = hold_at(home.position)
     for u in push_directions(4, np.asarray(task_cfg.workplane_normal, dtype=float)):
         depth = 0.0
-        while depth < CONTACT_TRAVEL:
+        while depth < CONTACT_TRAVEL + 2.0 / stiffness:
             depth += CONTACT_STEP
             f, _x = hold_at(home.position + depth * u)
             if np.linalg.norm(f - rest) > 1.0:

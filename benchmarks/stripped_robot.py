@@ -40,6 +40,7 @@ import math
 import statistics
 import time
 from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -50,6 +51,7 @@ from constraint_aware.bench.sweep import suite_specs
 from constraint_aware.control.calibrate import calibrate
 from constraint_aware.control.executor_config import ExecutorConfig
 from constraint_aware.control.profile import RobotProfile
+from constraint_aware.control.robot import Robot
 from constraint_aware.control.simulate import RunSpec, grasped, run
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.tasks import TASKS, task_config
@@ -72,13 +74,16 @@ class RequiredOnly:
         self.control_period = float(inner.control_period)
 
     def read_wrench(self) -> Wrench:
-        return self._inner.read_wrench()  # type: ignore[no-any-return]
+        return self._inner.read_wrench()
 
     def read_pose(self) -> Pose:
-        return self._inner.read_pose()  # type: ignore[no-any-return]
+        return self._inner.read_pose()
 
     def commanded_pose(self) -> Pose:
-        return self._inner.commanded_pose()  # type: ignore[no-any-return]
+        return self._inner.commanded_pose()
+
+    def grasp_contact(self) -> bool | None:
+        return None  # the Robot protocol's "cannot tell": as if the member were absent
 
     def command_pose(self, pose: Pose) -> None:
         self._inner.command_pose(pose)
@@ -131,10 +136,10 @@ class DeadSensor:
         return Wrench(self.last.force + jitter, self.last.torque + jitter)
 
     def read_pose(self) -> Pose:
-        return self.sim.read_pose()  # type: ignore[no-any-return]
+        return self.sim.read_pose()
 
     def commanded_pose(self) -> Pose:
-        return self.sim.commanded_pose()  # type: ignore[no-any-return]
+        return self.sim.commanded_pose()
 
     def command_pose(self, pose: Pose) -> None:
         self.sim.command_pose(pose)
@@ -172,9 +177,11 @@ def stripped(
         for spec in suite_specs(seeds, ["policy"]):
             spec = dataclasses.replace(spec, robot=robot)
             for condition in CONDITIONS:
-                wrap = None if condition == "full reports" else RequiredOnly
-                prof = profs[(robot, spec.task)] if condition == "stripped + profile" else None
-                record, _ = run(spec, policy=policy, wrap=wrap, profile=prof)
+                wrap: Callable[[Any], Robot] | None = None
+                if condition != "full reports":
+                    wrap = RequiredOnly
+                given = profs[(robot, spec.task)] if condition == "stripped + profile" else None
+                record, _ = run(spec, policy=policy, wrap=wrap, profile=given)
                 summary = record.summary()
                 summary["sources"] = {k: v["source"] for k, v in record.inputs.items()}
                 rows.setdefault((robot, spec.task, condition), []).append(summary)
