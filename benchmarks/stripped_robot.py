@@ -7,7 +7,9 @@ frozen force sensors on both.
 
 Profiles: one calibration (control.calibrate.calibrate, default settings) per robot and task,
 on the task's preset object (not randomized), seed 0, through an adapter exposing only the
-required members: the profile a user would make once per robot and grasp.
+required members: the profile a user would make once per robot and grasp. With `--fixture
+ROBOT=TASK`, one calibration of ROBOT holding TASK's object serves every task (a user who
+calibrates once per robot, on an object where every quantity can be measured).
 
 Section "stripped" (on the randomized suite of bench/sweep.py, controller `policy`, the same
 draws for each condition):
@@ -154,13 +156,19 @@ class DeadSensor:
         self.sim.command_pose(self.sim.read_pose())
 
 
-def profiles(robots: tuple[str, ...]) -> dict[tuple[str, str], RobotProfile]:
-    """One calibration per robot and task (module docstring)."""
+def profiles(
+    robots: tuple[str, ...], fixtures: dict[str, str]
+) -> dict[tuple[str, str], RobotProfile]:
+    """One calibration per robot and task (module docstring); or, for a robot in `fixtures`,
+    one calibration on that task used for every task."""
     out = {}
     for robot in robots:
         for task in TASKS:
-            _task, sim = grasped(RunSpec(task=task, robot=robot, seed=0))
-            out[(robot, task)] = calibrate(RequiredOnly(sim), name=f"{robot} / {task}")
+            fixture = fixtures.get(robot, task)
+            if (robot, fixture) not in out:
+                _task, sim = grasped(RunSpec(task=fixture, robot=robot, seed=0))
+                out[(robot, fixture)] = calibrate(RequiredOnly(sim), name=f"{robot} / {fixture}")
+            out[(robot, task)] = out[(robot, fixture)]
     return out
 
 
@@ -297,15 +305,24 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--robots", default=",".join(ROBOTS))
     parser.add_argument("--sections", default="stripped,dead_sensor")
+    parser.add_argument(
+        "--fixture",
+        action="append",
+        default=[],
+        metavar="ROBOT=TASK",
+        help="calibrate ROBOT once, holding TASK's object, and use that profile on every task",
+    )
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = parser.parse_args()
     robots = tuple(args.robots.split(","))
     sections = args.sections.split(",")
+    fixtures = dict(item.split("=", 1) for item in args.fixture)
     start = time.perf_counter()
-    profs = profiles(robots)
+    profs = profiles(robots, fixtures)
     out: dict[str, Any] = {
         "seeds": args.seeds,
         "robots": list(robots),
+        "fixtures": fixtures,
         "profiles": {f"{r} / {t}": p.to_dict() for (r, t), p in profs.items()},
     }
     if "stripped" in sections:
