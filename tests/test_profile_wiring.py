@@ -173,22 +173,22 @@ def test_without_a_profile_the_dead_band_is_measured_from_the_offset_samples() -
     assert rec.inputs["step_force"]["source"] == "missing"
 
 
-def test_precedence_config_then_profile_then_the_robots_report() -> None:
+def test_precedence_config_then_the_robots_report_then_the_profile() -> None:
     robot = Guide(report_stiffness=True)
     rec = Executor(robot, FixedDirection(), GOAL, profile=profile(stiffness=1800.0)).run(d0(0))
-    assert rec.inputs["step_force"] == {"value": pytest.approx(18.0), "source": "profile"}
-    assert "stiffness 1800 N/m from the robot profile (robot reports 2000 N/m)" in rec.notes
+    assert rec.inputs["step_force"] == {"value": pytest.approx(K * 0.01), "source": "robot"}
+    assert any("the robot profile measured 1800 N/m" in n for n in rec.notes)
+    assert rec.inputs["tracking_time_constant"]["source"] == "profile"  # the robot has none
     cfg = GOAL.with_overrides(robot__stiffness=2500.0, threshold=1.0)
     rec = Executor(Guide(report_stiffness=True), FixedDirection(), cfg, profile=profile()).run(
         d0(0)
     )
     assert rec.inputs["step_force"] == {"value": pytest.approx(25.0), "source": "config"}
     assert rec.inputs["dead_band"] == {"value": 1.0, "source": "config"}
+    assert "stiffness 2500 N/m from the configuration (robot reports 2000 N/m)" in rec.notes
     unmeasured = profile(stiffness=None)
-    rec = Executor(Guide(report_stiffness=True), FixedDirection(), GOAL, profile=unmeasured).run(
-        d0(0)
-    )
-    assert rec.inputs["step_force"] == {"value": pytest.approx(K * 0.01), "source": "robot"}
+    rec = Executor(Guide(), FixedDirection(), GOAL, profile=unmeasured).run(d0(0))
+    assert rec.inputs["step_force"]["source"] == "missing"
     assert any(n.startswith("profile: stiffness unmeasured") for n in rec.notes)
 
 

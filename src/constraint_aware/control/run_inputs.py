@@ -16,9 +16,10 @@ switches a stage off refuses the run instead (`MissingInputError`, before anythi
 Where each value comes from (`resolve_robot_values`), first that has it:
 
 - the arm's stiffness k (for the step force k x step and the play force k x play): the
-  configuration's override (`ExecutorConfig.robot.stiffness`), the robot profile's measured
-  value (control.profile), the robot's `translational_stiffness` report;
-- the tracking time constant tau: the profile's measured value, the robot's report;
+  configuration's override (`ExecutorConfig.robot.stiffness`), the robot's
+  `translational_stiffness` report, the robot profile's measured value (control.profile);
+- the tracking time constant tau: the robot's `tracking_time_constant` report, the profile's
+  measured value;
 - the grasp play: the configuration's override, the profile's measured value;
 - the dead band: the configuration's `threshold`, the profile's (from the calibrated noise
   over its long rest), else derived at the start of the run from the spread of the F_d
@@ -26,13 +27,13 @@ Where each value comes from (`resolve_robot_values`), first that has it:
 - the force noise sigma (the stale-reading check, control.sensor_health): the profile's, else
   the F_d samples' spread.
 
-The profile ranks above the robot's reports because it is measured at the tool point through
-the wrist sensor the controller reads, at the controller's own step: what k x step and tau
-mean to the controller. A robot's `translational_stiffness` is its controller's nominal gain,
-which differs from what the sensor sees when other compliance sits in series (a compliant
-wrist) or friction is fed forward; its `tracking_time_constant` is a free-space step response
-of one size. No robot report is documented to be better than the profile's measurement; a
-report is used where the profile has no value (unmeasured, with its reason noted).
+A robot's report of a member the Robot protocol documents (`translational_stiffness`,
+`tracking_time_constant`) ranks above the profile: it is the arm controller's own value, and
+measured against the effective stiffness at the tool point (the object locked, static
+pushes: benchmarks/calibration.py --tool-point) the reports of both simulated robots are as
+close as the calibration's estimate or closer (docs/design/calibration.md). The profile
+supplies what the robot does not report, which is what makes a robot with only the required
+members whole; the record notes both values when they differ in source.
 """
 
 from __future__ import annotations
@@ -165,28 +166,29 @@ def resolve_robot_values(
     k_profile, tau_profile = measured("stiffness"), measured("tracking_time_constant")
     play_profile, band_profile = measured("grasp_play"), measured("dead_band")
     noise_profile = measured("force_noise")
-    k: float | None
-    k_source: InputSource
+    k: float | None = reported_stiffness
+    k_source: InputSource = "robot"
     if stiffness_override is not None:
         k, k_source = stiffness_override, "config"
-    elif k_profile is not None:
+    elif reported_stiffness is None and k_profile is not None:
         k, k_source = k_profile, "profile"
-    else:
-        k, k_source = reported_stiffness, "robot"
-    if k_source != "robot":
+    if k_source == "config":
         reported = "none" if reported_stiffness is None else f"{reported_stiffness:g} N/m"
+        notes.append(f"stiffness {k:.0f} N/m from the configuration (robot reports {reported})")
+    elif k_profile is not None and reported_stiffness is not None:
         notes.append(
-            f"stiffness {k:.0f} N/m from the {SOURCE_WORDS[k_source]} (robot reports {reported})"
+            f"stiffness {reported_stiffness:g} N/m from the robot's report (the robot profile "
+            f"measured {k_profile:.0f} N/m)"
         )
     tau: float | None = reported_time_constant
     tau_source: InputSource = "robot"
-    if tau_profile is not None:
+    if tau is None and tau_profile is not None:
         tau, tau_source = tau_profile, "profile"
-        if reported_time_constant is not None:
-            notes.append(
-                f"tracking time constant {tau:.3g} s from the robot profile (robot reports "
-                f"{reported_time_constant:.3g} s)"
-            )
+    elif tau is not None and tau_profile is not None:
+        notes.append(
+            f"tracking time constant {tau:.3g} s from the robot's report (the robot profile "
+            f"measured {tau_profile:.3g} s)"
+        )
     play: float | None = grasp_play_override
     play_source: InputSource = "config"
     if play is None and play_profile is not None:
