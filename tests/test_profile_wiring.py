@@ -305,11 +305,13 @@ def test_the_gym_task_env_passes_its_profile_to_every_episode() -> None:
     from constraint_aware.envs.task import TaskEnv
     from constraint_aware.errors import ConfigError
 
-    env = TaskEnv("drawer-opening", profile=profile(stiffness=1500.0))
+    env = TaskEnv("drawer-opening", profile=profile(grasp_play=0.001))
     env.reset(seed=0)
     assert env.executor is not None and env.executor.profile is env.profile
     assert env._record is not None
-    assert env._record.inputs["step_force"]["source"] == "profile"
+    assert env._record.inputs["dead_band"] == {"value": 0.4, "source": "profile"}
+    assert env._record.inputs["play_force"]["source"] == "profile"
+    assert env._record.inputs["step_force"]["source"] == "robot"  # the simulator reports k
     with pytest.raises(ConfigError, match=r"TaskEnv\.profile"):
         TaskEnv("drawer-opening", profile="hook.json")  # type: ignore[arg-type]
 
@@ -329,8 +331,9 @@ def test_cap_run_profile_and_strict_inputs(tmp_path: Path) -> None:
     proc = cap("run", "drawer-opening", "--profile", str(good), "--json", str(out))
     assert proc.returncode in (0, 1), proc.stderr
     rec = json.loads(out.read_text())
-    assert rec["inputs"]["step_force"]["source"] == "profile"
-    assert rec["inputs"]["step_force"]["value"] == pytest.approx(19.0)
+    assert rec["inputs"]["dead_band"] == {"value": 0.4, "source": "profile"}
+    assert rec["inputs"]["step_force"]["source"] == "robot"  # the simulator reports k
+    assert any("the robot profile measured 1900 N/m" in n for n in rec["notes"])
     bad = tmp_path / "bad.json"
     bad.write_text(good.read_text().replace('"guide"', '""'))
     proc = cap("run", "drawer-opening", "--profile", str(bad))
@@ -339,3 +342,5 @@ def test_cap_run_profile_and_strict_inputs(tmp_path: Path) -> None:
     assert proc.returncode == 2 and "control_period_s" in proc.stderr
     proc = cap("lfo", "demo.json", "--profile", str(good))
     assert proc.returncode == 2 and "--profile without --execute" in proc.stderr
+    proc = cap("lfo", "demo.json", "--strict-inputs")
+    assert proc.returncode == 2 and "--strict-inputs without --execute" in proc.stderr
