@@ -1,6 +1,13 @@
 """The calibration (control/calibrate.py) against the simulator's truth, on both robots.
 
     python benchmarks/calibration.py [--seeds 5] [--out benchmarks/results/calibration.json]
+    python benchmarks/calibration.py --tool-point [--seeds 1]
+        --out benchmarks/results/calibration_tool_point.json
+
+`--tool-point`: the calibrated stiffness against the effective stiffness at the tool point,
+measured with simulator privileges (`tool_point_stiffness`: the object locked, static pushes
+of known size, the noise-free force), on both robots within their advertised variant ranges
+(sim.embodiment.VARIANT_RANGES), every task as the fixture; the nominal gain beside it.
 
 Each calibration runs through an adapter that forwards only the Robot protocol's required
 members (no `translational_stiffness`, `tracking_time_constant`, `grasp_contact` or `hold`),
