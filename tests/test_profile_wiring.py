@@ -56,8 +56,15 @@ class Guide:
 
     control_period = 0.1
 
-    def __init__(self, sensor: str = "ok", seed: int = 0, report_stiffness: bool = False):
+    def __init__(
+        self,
+        sensor: str = "ok",
+        seed: int = 0,
+        report_stiffness: bool = False,
+        noise: float = SIGMA,
+    ):
         self.sensor = sensor
+        self.noise = noise
         self.rng = np.random.default_rng(seed)
         self.report_stiffness = report_stiffness
         self.s = 0.0
@@ -85,7 +92,7 @@ class Guide:
             jitter = 1e-9 * math.sin(self.periods) if self.sensor == "jitter" else 0.0
             return Wrench(self.last.force + jitter, self.last.torque)
         force = self.true_force() if not (failed and self.sensor == "dead") else np.zeros(3)
-        self.last = Wrench(force + SIGMA * self.rng.normal(size=3), np.zeros(3))
+        self.last = Wrench(force + self.noise * self.rng.normal(size=3), np.zeros(3))
         return self.last
 
     def read_pose(self) -> Pose:
@@ -256,15 +263,21 @@ def test_without_any_stiffness_a_dead_sensor_goes_unseen() -> None:
     assert robot.peak_true_force > 30.0
 
 
-@pytest.mark.parametrize("with_profile", [True, False])
-def test_a_reading_frozen_with_tiny_jitter_stops_sensor_dead(with_profile: bool) -> None:
-    """Jitter of 1e-9 N passes the exact-repeat guard; its spread is far below sigma (the
-    calibrated one, or without a profile the F_d samples')."""
-    robot = Guide("jitter")
-    prof = profile() if with_profile else None
-    rec = Executor(robot, FixedDirection(), GOAL, profile=prof).run(d0(0))
+def test_a_reading_frozen_with_tiny_jitter_stops_sensor_dead() -> None:
+    """Jitter of 1e-9 N passes the exact-repeat guard; its spread is far below the
+    calibrated sigma. Without a calibration there is no noise floor to compare with."""
+    rec = Executor(Guide("jitter"), FixedDirection(), GOAL, profile=profile()).run(d0(0))
     assert rec.outcome == "sensor_dead", rec.reason
     assert "frozen force reading" in rec.reason and not rec.success
+    rec = Executor(Guide("jitter"), FixedDirection(), GOAL).run(d0(0))
+    assert rec.outcome != "sensor_dead"
+
+
+def test_a_noise_free_reading_is_not_frozen_without_a_calibration() -> None:
+    """A simulated sensor without noise spreads at rest only by the hand's micro-motion: no
+    reference for the frozen test, so a steady pull is not judged frozen."""
+    rec = Executor(Guide(noise=0.0), FixedDirection(), GOAL).run(d0(0))
+    assert rec.outcome == "success", rec.reason
 
 
 def test_a_reading_frozen_from_the_start_is_caught_before_moving_with_a_profile() -> None:

@@ -14,10 +14,11 @@ Two ways a wrist sensor fails without returning a non-finite number or repeating
 - it freezes with a jitter far below its noise (a driver that re-sends a held value with
   rounding, or a filter stuck at its state): the readings are not identical, so the stale
   guard's exact-repeat test passes, but their spread over `STALE_WINDOW` periods is below
-  `STALE_FRACTION` of the sensor's noise sigma. Sigma is the calibrated one (robot profile)
-  when there is one, else the spread of the F_d samples before moving (a sensor frozen from
-  the start then has no reference: only a calibration reveals it). With a calibrated sigma the
-  F_d samples themselves are judged before the first move.
+  `STALE_FRACTION` of the sensor's calibrated noise sigma (robot profile); the F_d samples
+  themselves are judged before the first move. Without a calibration there is no reference:
+  the spread of the F_d samples is no noise floor (a noise-free reading at rest spreads only
+  by the hand's micro-motion, which a steady pull can undercut), so only exact repeats are
+  caught.
 
 A Gaussian reading of sigma per axis has a pooled spread below 0.1 sigma over 5 readings of 3
 axes (12 degrees of freedom) with probability below 1e-12, and a real force only adds spread,
@@ -51,33 +52,29 @@ class SensorHealth:
     """The dead- and frozen-sensor tests of one run (module docstring).
 
     Attributes:
-        noise: [N] the sensor's noise sigma per axis: the calibrated one, or None until the
-            F_d samples give one (`offset_sampled`).
-        calibrated: whether `noise` comes from a calibration (robot profile).
+        noise: [N] the sensor's calibrated noise sigma per axis (robot profile), or None: no
+            frozen-reading test.
     """
 
     noise: float | None
-    calibrated: bool = False
     window: deque[FloatArray] = field(default_factory=lambda: deque(maxlen=STALE_WINDOW))
 
     @classmethod
     def for_run(cls, calibrated_noise: float | None) -> SensorHealth:
         """The tests for a run; `calibrated_noise` [N] the profile's sigma, or None."""
         usable = calibrated_noise is not None and calibrated_noise > 0
-        return cls(calibrated_noise if usable else None, calibrated=usable)
+        return cls(calibrated_noise if usable else None)
 
     def offset_sampled(self, forces: FloatArray) -> Stop | None:
         """The F_d samples (n, 3) [N] are in: a stop when they are frozen against the
-        calibrated sigma; without a calibration their spread becomes the reference."""
-        spread = noise_std(forces)
-        if self.calibrated:
-            return self._frozen(spread, len(forces), "before moving")
-        self.noise = spread if spread > 0 else None
-        return None
+        calibrated sigma."""
+        return self._frozen(noise_std(forces), len(forces), "before moving")
 
     def check_reading(self, force: FloatArray) -> Stop | None:
         """One raw force reading (3,) [N] per control period while moving: a stop when the
         last STALE_WINDOW readings are frozen."""
+        if self.noise is None:
+            return None
         self.window.append(np.asarray(force, dtype=float))
         if len(self.window) < STALE_WINDOW:
             return None
@@ -86,11 +83,10 @@ class SensorHealth:
     def _frozen(self, spread: float, count: int, when: str) -> Stop | None:
         if self.noise is None or spread >= STALE_FRACTION * self.noise:
             return None
-        source = "calibrated" if self.calibrated else "F_d"
         return Stop(
             "sensor_dead",
             f"frozen force reading {when}: spread {spread:.2g} N over {count} periods, below "
-            f"{STALE_FRACTION:g} x the {source} noise sigma {self.noise:.3g} N",
+            f"{STALE_FRACTION:g} x the calibrated noise sigma {self.noise:.3g} N",
         )
 
     @staticmethod
