@@ -24,8 +24,8 @@ Where each value comes from (`resolve_robot_values`), first that has it:
 - the dead band: the configuration's `threshold`, the profile's (from the calibrated noise
   over its long rest), else derived at the start of the run from the spread of the F_d
   samples (source "measured");
-- the force noise sigma (the stale-reading check, control.sensor_health): the profile's, else
-  the F_d samples' spread.
+- the force noise sigma (the frozen-reading test, control.sensor_health): the profile's
+  only; without it that test is off.
 
 A robot's report of a member the Robot protocol documents (`translational_stiffness`,
 `tracking_time_constant`) ranks above the profile: it is the arm controller's own value, and
