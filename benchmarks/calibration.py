@@ -1,6 +1,13 @@
 """The calibration (control/calibrate.py) against the simulator's truth, on both robots.
 
     python benchmarks/calibration.py [--seeds 5] [--out benchmarks/results/calibration.json]
+    python benchmarks/calibration.py --tool-point [--seeds 1]
+        --out benchmarks/results/calibration_tool_point.json
+
+`--tool-point`: the calibrated stiffness against the effective stiffness at the tool point,
+measured with simulator privileges (`tool_point_stiffness`: the object locked, static pushes
+of known size, the noise-free force), on both robots within their advertised variant ranges
+(sim.embodiment.VARIANT_RANGES), every task as the fixture; the nominal gain beside it.
 
 Each calibration runs through an adapter that forwards only the Robot protocol's required
 members (no `translational_stiffness`, `tracking_time_constant`, `grasp_contact` or `hold`),
@@ -46,8 +53,11 @@ import numpy as np
 
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.control.calibrate import CalibrationConfig, calibrate
+from constraint_aware.control.probe import push_directions
 from constraint_aware.control.simulate import RunSpec, grasped
+from constraint_aware.sim.embodiment import VARIANT_RANGES
 from constraint_aware.sim.tasks import TASKS
+from constraint_aware.spatial import Pose
 
 DEFAULT_OUT = Path(__file__).parent / "results" / "calibration.json"
 STIFFNESSES = (500.0, 1000.0, 2000.0, 5000.0, 20000.0)
@@ -335,14 +345,142 @@ def _count(items: Iterator[str]) -> dict[str, int]:
     return out
 
 
+#: The tool-point truth's stiffnesses: within each robot's advertised variant range.
+CANDIDATES = (200.0, 500.0, 700.0, 1000.0, 2000.0, 4000.0, 5000.0, 10000.0)
+IN_RANGE = {
+    robot: tuple(k for k in CANDIDATES if low <= k <= high)
+    for robot in ROBOTS
+    for low, high in [VARIANT_RANGES[robot]["stiffness"]]
+}
+#: The object locked for the truth: its joint confined to +-10 um, and dry friction far above
+#: any push.
+LOCKED = (("object__joint_range", (-1e-5, 1e-5)), ("object__frictionloss", 1000.0))
+SETTLE_PERIODS = 15  # control periods held at each static level (the arms settle in < 0.5 s)
+CONTACT_STEP = 0.00025  # [m] the setpoint's steps while looking for contact
+CONTACT_TRAVEL = 0.005  # [m] no contact within this plus 2 N worth of the nominal stiffness:
+# the direction is not blocked
+
+
+def tool_point_stiffness(robot: str, stiffness: float, task: str) -> dict[str, Any]:
+    """The effective tool-point stiffness with simulator privileges: the object locked, static
+    pushes of known size in four workplane directions from rest, each held SETTLE_PERIODS
+    periods, the noise-free wrist force read (`true_wrench`). In each direction the setpoint
+    first steps out by CONTACT_STEP until the force has changed by 1 N from rest (contact,
+    past any play in the grasp; none within CONTACT_TRAVEL + 2 N / k: not blocked, the
+    hook's open side), then holds two levels 3 N and 6 N worth of the nominal stiffness beyond that.
+    Per blocked direction: k_command = |F_B - F_A| / |setpoint_B - setpoint_A| (the
+    force per blocked step, what the controller's k x step means) and k_stretch = |F_B - F_A|
+    / |stretch_B - stretch_A| (stretch = setpoint - measured tool point, what the calibration
+    measures). Returns their medians over the blocked directions and the spread."""
+    spec = RunSpec(task, seed=0, robot=robot_spec(robot, stiffness), sensor_noise=0.0,
+                   overrides=LOCKED)  # fmt: skip
+    task_cfg, sim = grasped(spec)
+    home = sim.commanded_pose()
+
+    def hold_at(position: Any) -> tuple[Any, Any]:
+        for _ in range(SETTLE_PERIODS):
+            sim.command_pose(Pose(position, home.orientation))
+            sim.advance()
+        return np.asarray(sim.true_wrench().force), np.asarray(sim.read_pose().position)
+
+    k_cmd: list[float] = []
+    k_str: list[float] = []
+    rest, _x = hold_at(home.position)
+    for u in push_directions(4, np.asarray(task_cfg.workplane_normal, dtype=float)):
+        depth = 0.0
+        while depth < CONTACT_TRAVEL + 2.0 / stiffness:
+            depth += CONTACT_STEP
+            f, _x = hold_at(home.position + depth * u)
+            if np.linalg.norm(f - rest) > 1.0:
+                break
+        else:
+            hold_at(home.position)
+            continue  # not blocked (the hook's open side)
+        levels = []
+        for force in (3.0, 6.0):
+            setpoint = home.position + (depth + force / stiffness) * u
+            f, x = hold_at(setpoint)
+            levels.append((f, setpoint, setpoint - x))
+        hold_at(home.position)
+        (fa, sa, ra), (fb, sb, rb) = levels
+        df = float(np.linalg.norm(fb - fa))
+        k_cmd.append(df / float(np.linalg.norm(sb - sa)))
+        k_str.append(df / max(float(np.linalg.norm(rb - ra)), 1e-9))
+    return {
+        "blocked_directions": len(k_cmd),
+        "k_command": statistics.median(k_cmd) if k_cmd else None,
+        "k_command_range": [min(k_cmd), max(k_cmd)] if k_cmd else None,
+        "k_stretch": statistics.median(k_str) if k_str else None,
+    }
+
+
+def tool_point(seeds: int) -> dict[str, Any]:
+    """The calibration's stiffness against the tool-point truth and against the nominal
+    (reported) gain, per robot and in-range stiffness, on every task as the fixture."""
+    rows = []
+    for robot in ROBOTS:
+        for stiffness in IN_RANGE[robot]:
+            for task in TASKS:
+                truth = tool_point_stiffness(robot, stiffness, task)
+                for seed in range(seeds):
+                    row = calibrate_one(robot, stiffness, task, seed)
+                    k = row["quantities"]["stiffness"]["value"]
+                    t = truth["k_command"]
+                    rows.append({
+                        "robot": robot, "stiffness_setting": stiffness, "task": task,
+                        "seed": seed, "truth": truth, "calibrated": k,
+                        "ratio_to_truth": k / t if k is not None and t else None,
+                        "ratio_to_nominal": k / stiffness if k is not None else None,
+                        "tau": row["quantities"]["tracking_time_constant"],
+                        "force_noise": row["quantities"]["force_noise"],
+                        "robot_time_s": row["robot_time_s"],
+                    })  # fmt: skip
+                    print(
+                        f"{robot:9s} {stiffness:6.0f} {task:16s} truth "
+                        f"{t if t is not None else float('nan'):8.0f} calibrated "
+                        f"{k if k is not None else float('nan'):8.0f}",
+                        flush=True,
+                    )
+    summary: dict[str, Any] = {}
+    for robot in ROBOTS:
+        for stiffness in IN_RANGE[robot]:
+            cell = [r for r in rows if r["robot"] == robot and r["stiffness_setting"] == stiffness]
+            ratios = [r["ratio_to_truth"] for r in cell if r["ratio_to_truth"] is not None]
+            nominal = [r["ratio_to_nominal"] for r in cell if r["ratio_to_nominal"] is not None]
+            truths = [r["truth"]["k_command"] for r in cell if r["truth"]["k_command"]]
+            summary[f"{robot}:{stiffness:g}"] = {
+                "calibrations": len(cell),
+                "measured": len(ratios),
+                "within_10pct_of_truth": sum(abs(x - 1) <= TOLERANCE["stiffness"] for x in ratios),
+                "ratio_to_truth_median": statistics.median(ratios) if ratios else None,
+                "ratio_to_nominal_median": statistics.median(nominal) if nominal else None,
+                "truth_over_nominal_median": statistics.median(truths) / stiffness
+                if truths
+                else None,
+                "robot_time_s_max": max(r["robot_time_s"] for r in cell),
+            }
+    return {"stiffnesses": IN_RANGE, "summary": summary, "rows": rows}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--seeds", type=int, default=5, help="sensor-noise seeds per cell")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    parser.add_argument(
+        "--tool-point",
+        action="store_true",
+        help="only the stiffness against the tool-point truth, in each robot's variant range",
+    )
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
     start = time.perf_counter()
+    if args.tool_point:
+        out = tool_point(args.seeds)
+        out["wall_time_s"] = time.perf_counter() - start
+        write_results(args.out, out)
+        print(f"wrote {args.out}")
+        return
     rows = list(sweep(args.seeds))
     results: dict[str, Any] = {
         "config": {

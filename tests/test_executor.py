@@ -863,8 +863,9 @@ def test_stages_are_recorded_and_each_missing_input_warned_once(
     assert len(lines) == 4  # one per missing input, not per stage nor per step
     step_force = [line for line in lines if line.startswith("step_force missing")]
     assert step_force == [
-        "step_force missing (the robot reports no translational_stiffness and "
-        "ExecutorConfig.robot.stiffness is not set): stages magnitude_input, mirror_average off"
+        "step_force missing (the robot reports no translational_stiffness, the robot profile "
+        "has none and ExecutorConfig.robot.stiffness is not set): stages magnitude_input, "
+        "mirror_average off"
     ]
     assert any(line.startswith("rotation_rate missing (") for line in lines)
 

@@ -72,7 +72,7 @@ def report_partial(exc: BaseException, attr: str, path: str | None, what: str) -
         raise exc
     if path:
         write_json(partial.to_dict(), path)
-    if not isinstance(exc, Exception):
+    if not isinstance(exc, Exception) or isinstance(exc, CapError):  # Ctrl-C; input: exit 2
         raise exc
     print_error(f"{what} raised {type(exc).__name__}: {exc}")
     return EXIT_FAILED
@@ -163,6 +163,33 @@ def _add_policy(p: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
         + (f" ({', '.join(names)})" if names else "")
         + " or a policy .npz (default: the shipped default policy)",
     )
+
+
+def _add_profile_flags(p: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
+    """--profile FILE and --strict-inputs (both default None: "not given")."""
+    p.add_argument(
+        "--profile",
+        metavar="FILE",
+        help="a robot profile .json from `cap calibrate`: its measured stiffness, time "
+        "constant, grasp play and dead band become the run's inputs (the record names each "
+        "input's source); it must be for the robot's control period",
+    )
+    p.add_argument(
+        "--strict-inputs",
+        action="store_true",
+        default=None,
+        help="refuse to run (exit 2) when an input a controller stage needs is missing, "
+        "instead of warning and running with that stage off",
+    )
+
+
+def _load_profile(path: str | None) -> Any:
+    """The robot profile at `path` (ProfileFileError naming the file and field), or None."""
+    if not path:
+        return None
+    from constraint_aware.control.profile import RobotProfile
+
+    return RobotProfile.load(path)
 
 
 def _add_robot(
@@ -439,6 +466,7 @@ def _run_parser(p: argparse.ArgumentParser) -> None:
         "e.g. executor.threshold=1, executor.limits.force_limit=40, "
         "executor.guards.predictive_force=false); an unknown key lists the valid ones",
     )
+    _add_profile_flags(p)
     _add_policy(p)
     out = p.add_argument_group("outputs (checked before the run starts)")
     out.add_argument(
@@ -482,6 +510,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.set:
         spec = spec.with_settings(parse_settings(args.set))
     uses_policy = spec.controller in POLICY_CONTROLLERS
+    profile = _load_profile(args.profile)
+    strict: dict[str, object] | None = {"strict_inputs": True} if args.strict_inputs else None
     policy = ConstraintAwarePolicy.load(args.policy) if uses_policy else None
     frames: list[Any] = []
     on_step = None
@@ -499,13 +529,15 @@ def cmd_run(args: argparse.Namespace) -> int:
             frames.append(renderer.frame(sim.data))
 
     try:
-        record, _sim = run(spec, policy=policy, on_step=on_step)
+        record, _sim = run(
+            spec, policy=policy, on_step=on_step, executor_overrides=strict, profile=profile
+        )
     except BaseException as exc:  # write what we have, then report (Ctrl-C: 130)
         partial = getattr(exc, "run_record", None)
         if partial is None:
             raise
         _write_run_outputs(args, partial, frames)
-        if not isinstance(exc, Exception):
+        if not isinstance(exc, Exception) or isinstance(exc, CapError):  # input error: exit 2
             raise
         print_error(f"the run raised {type(exc).__name__}: {exc}")
         return EXIT_FAILED
@@ -600,6 +632,7 @@ def _lfo_parser(p: argparse.ArgumentParser) -> None:
     )
     run.add_argument("--seed", type=int, help="the simulated sensor's noise seed (default: 0)")
     _add_robot(run, "that executes the skill", default="")
+    _add_profile_flags(run)
     _add_policy(run)
     run.add_argument("--record", metavar="PATH", help="the execution's run record (.json)")
     p.set_defaults(func=cmd_lfo)
@@ -612,6 +645,8 @@ LFO_EXECUTION_FLAGS = (
     ("--robot", "robot"),
     ("--policy", "policy"),
     ("--record", "record"),
+    ("--profile", "profile"),
+    ("--strict-inputs", "strict_inputs"),
 )
 LFO_CONTROLLER = "policy"
 
@@ -642,6 +677,7 @@ def cmd_lfo(args: argparse.Namespace) -> int:
         if args.seed < 0:
             raise InvalidInputError(f"--seed {args.seed}: must be >= 0")
         parse_robot(args.robot)  # before any work
+    profile = _load_profile(args.profile)  # before any work
     from constraint_aware.control.controllers import POLICY_CONTROLLERS
 
     if args.execute and args.controller in POLICY_CONTROLLERS:
@@ -657,7 +693,13 @@ def cmd_lfo(args: argparse.Namespace) -> int:
 
         try:
             record, info = execute(
-                skill, controller=args.controller, seed=args.seed, policy=policy, robot=args.robot
+                skill,
+                controller=args.controller,
+                seed=args.seed,
+                policy=policy,
+                robot=args.robot,
+                profile=profile,
+                strict_inputs=bool(args.strict_inputs),
             )
         except BaseException as exc:  # write the attached record, as cap run does
             return report_partial(exc, "run_record", args.record, "the execution")

@@ -31,10 +31,10 @@ from constraint_aware.control.probe import (
     probe_sensor,
     probed_settings,
 )
-from constraint_aware.control.profile import Measurement, RobotProfile
+from constraint_aware.control.profile import Measurement, ProfileFileError, RobotProfile
 from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord, StepRecord
 from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench, reported_stiffness
-from constraint_aware.control.run_inputs import INPUT_NAMES, INPUT_SOURCES
+from constraint_aware.control.run_inputs import INPUT_NAMES, INPUT_SOURCES, MissingInputError
 from constraint_aware.control.settings import Settings, parse_settings
 
 __all__ = [
@@ -54,9 +54,11 @@ __all__ = [
     "GuardsConfig",
     "LimitsConfig",
     "Measurement",
+    "MissingInputError",
     "Pose",
     "ProbeConfig",
     "ProbeResult",
+    "ProfileFileError",
     "Robot",
     "RobotOverrides",
     "RobotProfile",

@@ -23,8 +23,11 @@ Two ways to drive it:
 argument: a list instead of a Wrench, a force of shape (2,), complex values, a NaN in d0); a
 non-finite reading is a sensor fault, which the guards turn into a named stop.
 
-At `start` the record lists the run's inputs (control.run_inputs: each value and its source)
-and the controller's stages, and a warning names each missing input that switches a stage off.
+At `start` the record lists the run's inputs (control.run_inputs: each value and its source:
+the configuration, the robot `profile` from a calibration, the robot's reports) and the
+controller's stages, and a warning names each missing input that switches a stage off (with
+`ExecutorConfig.strict_inputs` the run is refused instead: MissingInputError). A dead or
+frozen force sensor stops the run `sensor_dead` (control.sensor_health).
 
 Safety invariants (each tested by injecting the fault, tests/test_faults.py): no non-finite or
 oversized command is ever returned or sent; a reading above the force limit is never a
@@ -55,6 +58,7 @@ from constraint_aware.control.guards import (
     step_length_stop,
 )
 from constraint_aware.control.motion import next_target, orient_normal, paper_rotation
+from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import OUTCOMES, RunRecord, measured_step
 from constraint_aware.control.robot import (
     Robot,
@@ -87,6 +91,7 @@ class Executor:
     controller: DirectionController
     config: ExecutorConfig = field(default_factory=ExecutorConfig)
     monitor: TaskMonitor | None = None
+    profile: RobotProfile | None = None  # the robot's calibration (control.calibrate)
     _record: RunRecord | None = field(default=None, init=False, repr=False)
     _run: RunState | None = field(default=None, init=False, repr=False)
 
@@ -128,7 +133,9 @@ class Executor:
             if label is not None and not isinstance(label, Mapping):
                 raise InvalidInputError(f"label: expected a dict or None, got {label!r}")
             record.label.update(label or {})
-            begun = begin_run(self.config, self.robot, self.controller, record, initial_direction)
+            begun = begin_run(
+                self.config, self.robot, self.controller, record, initial_direction, self.profile
+            )
             if isinstance(begun, Stop):
                 self._finish(record, begun.outcome, begun.reason)
             else:
@@ -205,7 +212,7 @@ class Executor:
             return self._end(st, Stop("nan", "sensor returned a non-finite wrench"))
         if stop := st.pose.count(pose_ok, pose_why):
             return self._end(st, stop)
-        if stop := st.stale.check(wrench):
+        if stop := st.stale.check(wrench) or st.health.check_reading(wrench.force):
             return self._end(st, stop)
         # the force limit and the faults come before success: a run above the limit is never
         # a success, whatever the monitor or the goal say
@@ -217,7 +224,9 @@ class Executor:
             st.arm_force = arm_force(
                 st.lag, st.stiffness, cfg.step_length, pose.position, st.target.position
             )
-        if stop := arm_force_stop(st.arm_force, magnitude, st.stiffness, cfg.step_length, limit):
+        stop = arm_force_stop(st.arm_force, magnitude, st.stiffness, cfg.step_length, limit)
+        travel = self._hand_travel(st, pose) if pose_ok else None
+        if stop := st.health.classify(stop, magnitude, st.threshold, travel, cfg.step_length):
             return self._end(st, stop)
         if self.monitor is not None and (reason := self.monitor.grasp_failure()):
             return self._finish(st.record, "grasp_lost", reason)

@@ -226,6 +226,9 @@ class ExecutorConfig:
     # (revolute): orients the workplane normal so that d0 turns positively about it
     rotation_radius: float | None = None  # [m] r of a revolute motion (the torque policy's
     # initial w = step_length / r, and the rotation rate a controller is given)
+    strict_inputs: bool = False  # refuse to run (MissingInputError, before anything moves)
+    # when an input a controller stage needs is missing, instead of warning and running
+    # with that stage off (control.run_inputs)
     limits: LimitsConfig = field(default_factory=LimitsConfig)
     guards: GuardsConfig = field(default_factory=GuardsConfig)
     self_check: SelfCheckConfig = field(default_factory=SelfCheckConfig)
@@ -242,6 +245,7 @@ class ExecutorConfig:
                 raise ConfigError(name + group, value, f"a {cls.__name__}")
         check_choice(name + "constraint_type", self.constraint_type, ("prismatic", "revolute"))
         check_choice(name + "command_from", self.command_from, ("measured", "target"))
+        _check_flag(name + "strict_inputs", self.strict_inputs)
         if self.workplane_normal is not None:
             normal = check_unit_vector(name + "workplane_normal", self.workplane_normal)
             object.__setattr__(self, "workplane_normal", normal)

@@ -1,9 +1,10 @@
 """One executor run's state, and what is settled before the hand moves.
 
 `begin_run` turns the configuration, the robot's optional reports and the controller into a
-run: d0 in the workplane, the normal oriented from the hinge, the stiffness in use (an
-override from the configuration replaces the robot's report, with a note), the run's inputs
-and the controller's stages (control.run_inputs), and the guards' state. `sample_offset`
+run: d0 in the workplane, the normal oriented from the hinge, what is known about the robot
+and where from (the configuration, a robot profile, the robot's reports: control.run_inputs,
+with a note for each report replaced), the run's inputs and the controller's stages, and the
+guards' state. `sample_offset`
 collects the wrench offset F_d over the hold before moving and derives the dead band from its
 spread. `goal_reached` is the executor's own success, judged on the robot's poses.
 """
@@ -27,6 +28,7 @@ from constraint_aware.control.guards import (
 )
 from constraint_aware.control.lag import LagModel
 from constraint_aware.control.motion import orient_normal
+from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import (
     Robot,
@@ -37,13 +39,18 @@ from constraint_aware.control.robot import (
 )
 from constraint_aware.control.run_inputs import (
     INPUT_NAMES,
-    InputSource,
+    SOURCE_WORDS,
     RunInput,
+    check_profile_period,
     gather_inputs,
+    measured_dead_band,
+    refuse_missing,
+    resolve_robot_values,
     stage_states,
     warn_missing,
 )
 from constraint_aware.control.self_check import SensorSelfCheck
+from constraint_aware.control.sensor_health import SensorHealth
 from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import noise_std, threshold_from_noise
 from constraint_aware.errors import InvalidInputError
@@ -60,7 +67,7 @@ class RunState:
     normal: FloatArray | None  # (3,) unit workplane normal, oriented; None: 3-D motion
     target: Pose  # the last commanded pose (the hold pose before moving)
     torque_policy: TorquePolicy | None
-    stiffness: float | None  # [N/m] the arm's stiffness in use (robot's report or config)
+    stiffness: float | None  # [N/m] the arm's stiffness in use (config, profile or robot)
     inputs: dict[str, RunInput]  # control.run_inputs
     lag: LagModel
     pose: PoseGuard
@@ -69,6 +76,8 @@ class RunState:
     lead: LeadGuard
     prediction: ForcePrediction
     self_check: SensorSelfCheck
+    health: SensorHealth
+    dead_band: float | None  # [N] the configured or profile dead band; None: derived from F_d
     samples: list[Wrench] = field(default_factory=list)  # F_d samples, one per period
     offset: Wrench | None = None  # F_d, tau_d once sampled
     threshold: float = math.nan  # [N] dead band in use
@@ -84,12 +93,17 @@ def begin_run(
     controller: DirectionController,
     record: RunRecord,
     initial_direction: object,
+    profile: RobotProfile | None = None,
 ) -> RunState | Stop:
     """The run from d0 `initial_direction` (3,), finite and non-zero (InvalidInputError
     otherwise), or a stop when the robot's commanded pose is not finite (nothing to hold).
-    Fills the record's notes, goal, inputs and stages, warns of missing inputs and resets the
-    controller."""
+    Fills the record's notes, goal, inputs and stages, warns of missing inputs (with
+    `strict_inputs`: raises MissingInputError instead) and resets the controller. `profile`:
+    the robot's calibration (control.profile), which must be at the robot's control period
+    (ProfileFileError otherwise)."""
     cfg = config
+    if profile is not None:
+        check_profile_period(profile, float(robot.control_period))
     d = unit(checked_vector(initial_direction, "initial_direction", finite=True))
     if not np.linalg.norm(d) > 0.5:
         raise InvalidInputError("initial_direction: must be a non-zero vector")
@@ -111,32 +125,40 @@ def begin_run(
         tp = cfg.torque_policy
         beta = math.radians(tp.beta_deg)
         torque_policy = TorquePolicy(cfg.rotation_radius, cfg.step_length, tp.alpha, beta)
-    stiffness, source = _stiffness(cfg, robot, record)
-    play = cfg.robot.grasp_play
+    reported_k, ignored_k = reported_stiffness(robot)
+    reported_tau, ignored_tau = reported_time_constant(robot)
+    record.notes.extend(note for note in (ignored_k, ignored_tau) if note)
+    if profile is not None:
+        record.notes.append(
+            f"robot profile {profile.robot!r} measured {profile.measured_at} ({profile.outcome})"
+        )
+    values = resolve_robot_values(
+        stiffness_override=cfg.robot.stiffness,
+        grasp_play_override=cfg.robot.grasp_play,
+        threshold=cfg.threshold,
+        reported_stiffness=reported_k,
+        reported_time_constant=reported_tau,
+        profile=profile,
+        notes=record.notes,
+    )
+    stiffness, tau, play = values.stiffness, values.tracking_time_constant, values.grasp_play
     if play is not None and play > 0:
         record.notes.append(
-            f"grasp play {play * 1000:.2f} mm from the configuration"
+            f"grasp play {play * 1000:.2f} mm from the {SOURCE_WORDS[values.grasp_play_source]}"
             + ("" if stiffness is not None else ": unused without a stiffness")
         )
-    tau, ignored = reported_time_constant(robot)
-    if ignored:
-        record.notes.append(ignored)
     if cfg.goal.travel is not None:
         record.goal = {"kind": "travel", "value": cfg.goal.travel, "unit": "m"}
     elif cfg.goal.rotation is not None:
         record.goal = {"kind": "rotation", "value": cfg.goal.rotation, "unit": "rad"}
     controller.reset(d)
     inputs = gather_inputs(
-        stiffness=stiffness,
-        stiffness_source=source,
-        step_length=cfg.step_length,
-        tracking_time_constant=tau,
-        normal=normal,
-        grasp_play=play,
-        controller=controller,
+        values=values, step_length=cfg.step_length, normal=normal, controller=controller
     )
     record.inputs = {name: inputs[name].to_record() for name in INPUT_NAMES}
     record.stages, warnings = stage_states(controller, cfg.constraint_type, inputs)
+    if cfg.strict_inputs:
+        refuse_missing(warnings)
     warn_missing(warnings)
     lag = LagModel(tau)
     g = cfg.guards
@@ -155,24 +177,9 @@ def begin_run(
         lead=LeadGuard.for_run(cfg, stiffness),
         prediction=ForcePrediction(stiffness, cfg.limits.force_limit),
         self_check=SensorSelfCheck(cfg.self_check.steps, stiffness, normal, lag),
+        health=SensorHealth.for_run(values.force_noise),
+        dead_band=values.dead_band,
     )
-
-
-def _stiffness(
-    cfg: ExecutorConfig, robot: Robot, record: RunRecord
-) -> tuple[float | None, InputSource]:
-    """[N/m] the stiffness in use and its source: the configuration's override (noted with
-    the robot's report), else the robot's valid report (an invalid one is noted)."""
-    stiffness, ignored = reported_stiffness(robot)
-    if ignored:
-        record.notes.append(ignored)
-    if cfg.robot.stiffness is None:
-        return stiffness, "robot"
-    reported = "none" if stiffness is None else f"{stiffness:g} N/m"
-    record.notes.append(
-        f"stiffness {cfg.robot.stiffness:.0f} N/m from the configuration (robot reports {reported})"
-    )
-    return cfg.robot.stiffness, "config"
 
 
 def sample_offset(st: RunState, config: ExecutorConfig, wrench: Wrench) -> bool | Stop:
@@ -192,19 +199,21 @@ def sample_offset(st: RunState, config: ExecutorConfig, wrench: Wrench) -> bool 
     trusted = st.pose.trusted
     if trusted is None:
         return Stop("bad_pose", "no finite pose before moving")
+    if stop := st.health.offset_sampled(forces):
+        return stop
     limit = config.limits.force_limit
-    if config.threshold is None:
+    if st.dead_band is None:
         sigma = noise_std(forces)
         st.threshold = threshold_from_noise(sigma)
         st.record.notes.append(
             f"dead band {st.threshold:.3g} N derived from F_d noise {sigma:.3g} N"
         )
-        if st.threshold >= limit:
-            return Stop(
-                "sensor_noise", f"derived dead band {st.threshold:.1f} N >= force limit {limit:g} N"
-            )
+        st.inputs["dead_band"] = measured_dead_band(st.threshold)
+        st.record.inputs["dead_band"] = st.inputs["dead_band"].to_record()
     else:
-        st.threshold = config.threshold
+        st.threshold = st.dead_band
+    if st.threshold >= limit:
+        return Stop("sensor_noise", f"dead band {st.threshold:.1f} N >= force limit {limit:g} N")
     st.record.threshold = st.threshold
     st.start_pose = trusted
     st.lag.begin(trusted.position, st.target.position)

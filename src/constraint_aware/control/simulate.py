@@ -32,6 +32,7 @@ from constraint_aware.control.probe import (
     probe_sensor,
     probed_settings,
 )
+from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import Robot
 from constraint_aware.control.settings import Settings
@@ -260,13 +261,15 @@ def run(
     initial_direction: FloatArray | None = None,
     executor_overrides: dict[str, object] | None = None,
     wrap: Callable[[Embodiment], Robot] | None = None,
+    profile: RobotProfile | None = None,
 ) -> tuple[RunRecord, Embodiment]:
     """Build the task, grasp, and run the controller from d0 = u rotated by `offset_deg`.
 
     initial_direction (3,) replaces that d0 and executor_overrides replace ExecutorConfig
     fields: how a demonstration's estimates (LfO) drive a run instead of the task's truth.
     wrap: puts a Robot between the executor and the simulator (fault injection); the
-    simulator stays the task monitor. Exceptions carry the record as `exc.run_record`.
+    simulator stays the task monitor. profile: the robot's calibration (`Executor.profile`).
+    Exceptions carry the record as `exc.run_record`.
     """
     probed: ProbeResult | None = None
     if spec.probe:  # at setup, on a twin: the run below starts from an undisturbed grasp
@@ -300,7 +303,7 @@ def run(
     ctrl = controller or make_controller(
         spec.controller, policy, rate, normal, dict(spec.controller_params)
     )
-    executor = Executor(robot, ctrl, cfg, monitor=sim)
+    executor = Executor(robot, ctrl, cfg, monitor=sim, profile=profile)
     label = {
         "task": spec.task,
         "controller": ctrl.name,

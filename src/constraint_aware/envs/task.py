@@ -11,6 +11,7 @@ from numpy.typing import ArrayLike
 
 from constraint_aware.control.controllers import ControlInput, project_on_plane
 from constraint_aware.control.executor import Executor
+from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.simulate import executor_config, simulated_robot
 from constraint_aware.envs.single_system import check_render_mode
@@ -111,6 +112,10 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             (the Kinova Jaco arm and hand), optionally with variants,
             "jaco:stiffness=2000,period=0.2"; an unknown name or variant fails at
             construction, naming the valid ones;
+        profile: the robot's calibration (control.profile.RobotProfile, e.g. from
+            `RobotProfile.load(path)` or `control.calibrate.calibrate`), given to the executor
+            of every episode (`Executor.profile`): its measured stiffness, time constant,
+            grasp play and dead band become the run's inputs (source "profile"); None: none;
         render_mode: None or "rgb_array" (offscreen MuJoCo, sim.render.SceneRenderer),
             width (1-640) and height (1-480) [px] of the frames.
     Every keyword is checked at construction, as `RunSpec` checks `cap run`'s: a wrong type or
@@ -130,6 +135,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         torque_policy: bool | None = None,
         executor: dict[str, Any] | None = None,
         robot: str = DEFAULT_ROBOT,
+        profile: RobotProfile | None = None,
         render_mode: str | None = None,
         width: int = 480,
         height: int = 360,
@@ -156,6 +162,9 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if not isinstance(robot, str):
             raise ConfigError(n + "robot", robot, "a robot spec such as 'jaco:stiffness=2000'")
         parse_robot(robot)  # UnknownNameError / InvalidInputError naming the valid ones
+        if profile is not None and not isinstance(profile, RobotProfile):
+            raise ConfigError(n + "profile", profile, "a RobotProfile (control.profile) or None")
+        self.profile = profile
         self.width = _check_pixels(n + "width", width, MAX_WIDTH)
         self.height = _check_pixels(n + "height", height, MAX_HEIGHT)
         if executor is not None and not isinstance(executor, dict):
@@ -208,7 +217,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         self._close_renderer()
         self.sim = sim
         self._controller = _ActionController()
-        self.executor = Executor(sim, self._controller, cfg, monitor=sim)
+        self.executor = Executor(sim, self._controller, cfg, monitor=sim, profile=self.profile)
         label = {
             "task": task.name,
             "controller": self._controller.name,

@@ -17,6 +17,7 @@ import numpy as np
 from constraint_aware.control.controllers import driving_policy, make_controller
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.executor_config import GoalConfig
+from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.simulate import RunSpec, executor_config, simulated_robot
 from constraint_aware.errors import CapError
@@ -64,6 +65,8 @@ def execute(
     policy: ConstraintAwarePolicy | None = None,
     sensor_noise: float = SENSOR_NOISE,
     robot: str = DEFAULT_ROBOT,
+    profile: RobotProfile | None = None,
+    strict_inputs: bool = False,
 ) -> tuple[RunRecord, dict[str, Any]]:
     """Run the skill; returns the record and what was built and how the estimates compare
     with the simulated object's truth.
@@ -71,6 +74,8 @@ def execute(
     robot: the embodiment that executes it, a robot spec (sim.embodiment: "hook-hand", "jaco",
     "jaco:stiffness=2000,period=0.1"); an unknown name or variant raises UnknownNameError or
     InvalidInputError naming the valid ones, before anything is built.
+    profile: the robot's calibration (`Executor.profile`); strict_inputs: refuse to run when
+    an input a controller stage needs is missing (`ExecutorConfig.strict_inputs`).
     Raises CapError (UncertainEstimateError) before anything moves when the constraint is
     unknown or the estimates are too uncertain for the grasp (lfo/plausibility.py).
     """
@@ -117,6 +122,7 @@ def execute(
         ),
         rotation_radius=radius,
         goal=GoalConfig(travel=goal_travel, rotation=goal_rotation),
+        strict_inputs=strict_inputs,
     )
     rate = None
     if cfg.constraint_type == "revolute" and radius:
@@ -144,7 +150,7 @@ def execute(
     driver = driving_policy(ctrl)
     if driver is not None:
         label["policy"] = driver.name  # which policy drove the run (the card's name)
-    record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, label)
+    record = Executor(sim, ctrl, cfg, monitor=sim, profile=profile).run(d0, label)
     info = {
         "task": task.name,
         "kind": kind,
