@@ -70,7 +70,7 @@ from constraint_aware.control.robot import (
 from constraint_aware.control.run_inputs import INPUT_NAMES, RunInput
 from constraint_aware.control.run_state import RunState, begin_run, goal_reached, sample_offset
 from constraint_aware.errors import InvalidInputError, check_choice
-from constraint_aware.geometry import FloatArray, in_plane, unit
+from constraint_aware.geometry import FloatArray, all_finite, in_plane, norm, unit
 from constraint_aware.spatial import Pose, Wrench
 
 __all__ = [
@@ -199,8 +199,8 @@ class Executor:
         assert st.offset is not None
         force = wrench.force - st.offset.force
         torque = wrench.torque - st.offset.torque
-        finite = np.all(np.isfinite(force)) and np.all(np.isfinite(torque))
-        magnitude = float(np.linalg.norm(force)) if finite else math.nan
+        finite = all_finite(force) and all_finite(torque)
+        magnitude = norm(force) if finite else math.nan
         hand = pose.position if pose_ok else np.full(3, math.nan)
         rate = st.torque_policy.w if st.torque_policy is not None else None
         st.record.steps.append(
@@ -294,10 +294,11 @@ class Executor:
         target = next_target(
             st.target, pose.position, d_next * length, st.normal, cfg.step_length, reanchor
         )
-        target = Pose(target.position, rotation * target.orientation)
+        if rotation is not None:
+            target = Pose(target.position, rotation * target.orientation)
         # a robot not following its setpoint (frozen, e-stopped, clamped): do not let the
         # target run away, or the robot lunges when it resumes
-        held, stop = st.lead.check(float(np.linalg.norm(target.position - pose.position)))
+        held, stop = st.lead.check(norm(target.position - pose.position))
         if stop:
             return self._end(st, stop)
         if held:
@@ -307,7 +308,7 @@ class Executor:
         st.prediction.note(force, length)
         st.self_check.note_move(length)
         st.command_position = pose.position.copy()
-        st.pose.commanded(float(np.linalg.norm(target.position - st.target.position)))
+        st.pose.commanded(norm(target.position - st.target.position))
         st.target = target
         st.direction = d_next
         st.moves += 1
@@ -319,9 +320,13 @@ class Executor:
         st.self_check.note_move(0.0)
         return st.target
 
-    def _hand_rotation(self, st: RunState, d_next: FloatArray, torque: FloatArray) -> Rotation:
+    def _hand_rotation(
+        self, st: RunState, d_next: FloatArray, torque: FloatArray
+    ) -> Rotation | None:
+        """This step's hand rotation; None on a prismatic constraint (the hand keeps its
+        orientation)."""
         if self.config.constraint_type != "revolute":
-            return Rotation.identity()
+            return None
         own = self.controller.hand_rotation()
         if own is not None:
             return own
