@@ -16,7 +16,15 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.interface import ControlInput, DirectionController
 from constraint_aware.errors import check_number
-from constraint_aware.geometry import FloatArray, all_finite, cross, norm, turn_vector, unit
+from constraint_aware.geometry import (
+    FloatArray,
+    all_finite,
+    cross,
+    norm,
+    rotate_about,
+    turn_vector,
+    unit,
+)
 
 #: Overshoot damping, Rprop's step factors (Riedmiller & Braun, ICNN 1993, eta- and eta+).
 OVERSHOOT_FACTOR = 0.5
@@ -213,7 +221,10 @@ class SteadyDirection:
         turn = self._scaled(turn_vector(d, unit(proposed)), play_turn)
         turn = turn + self._fed_forward(inp)
         self._turn_hand(inp, turn)
-        return np.asarray(unit(Rotation.from_rotvec(turn).apply(d)))
+        angle = norm(turn)
+        if angle < 1e-15:
+            return np.asarray(unit(d))
+        return np.asarray(unit(rotate_about(d, turn / angle, angle)))
 
     def _conditioned(
         self, inp: ControlInput, across: tuple[float, FloatArray] | None, locates: bool
