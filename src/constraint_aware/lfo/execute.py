@@ -14,8 +14,12 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.control.controllers import driving_policy, make_controller
-from constraint_aware.control.executor import Executor
+from constraint_aware.control.controllers import (
+    DirectionController,
+    driving_policy,
+    make_controller,
+)
+from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.simulate import RunSpec, executor_config, simulated_robot
 from constraint_aware.errors import CapError
@@ -53,6 +57,40 @@ def goal_label(constraint: str, goal: float) -> dict[str, Any]:
     if constraint == "revolute":
         return {"goal_rotation_deg": math.degrees(goal), "goal_source": "demonstration"}
     return {"goal_travel_m": goal, "goal_source": "demonstration"}
+
+
+def manipulation_setup(
+    skill: SkillParameters,
+    task: TaskConfig,
+    control_period: float,
+    controller: str = "policy",
+    policy: ConstraintAwarePolicy | None = None,
+) -> tuple[ExecutorConfig, DirectionController]:
+    """The executor's configuration and the direction controller for manipulating with the
+    skill's estimates in charge: `task`'s settings (sim.control.executor_config: force limit,
+    timeout, hinge point) with the skill's constraint, workplane, torque policy, radius and
+    goal; control_period [s] sizes the torque policy's rate."""
+    base = executor_config(task, skill.fixed_orientation)
+    goal_travel, goal_rotation = robot_goal(skill)
+    radius = skill.radius if skill.constraint_type == "revolute" else None
+    cfg = dataclasses.replace(
+        base,
+        constraint_type=skill.constraint_type,  # type: ignore[arg-type]
+        workplane_normal=(
+            float(skill.workplane_normal[0]),
+            float(skill.workplane_normal[1]),
+            float(skill.workplane_normal[2]),
+        ),
+        torque_policy=bool(skill.fixed_orientation) and skill.constraint_type == "revolute",
+        rotation_radius=radius,
+        goal_travel=goal_travel,
+        goal_rotation=goal_rotation,
+    )
+    rate = None
+    if cfg.constraint_type == "revolute" and radius:
+        rate = cfg.step_length / control_period / radius  # w_d = v_d / r
+    normal = np.asarray(cfg.workplane_normal, dtype=float)
+    return cfg, make_controller(controller, policy, rate, normal)
 
 
 def execute(
@@ -99,27 +137,7 @@ def execute(
     )
     sim = simulated_robot(robot, task, np.random.default_rng(seed + 7919), sensor_noise)
     sim.reset()
-    base = executor_config(task, skill.fixed_orientation)
-    goal_travel, goal_rotation = robot_goal(skill)
-    radius = skill.radius if skill.constraint_type == "revolute" else None
-    cfg = dataclasses.replace(
-        base,
-        constraint_type=skill.constraint_type,  # type: ignore[arg-type]
-        workplane_normal=(
-            float(skill.workplane_normal[0]),
-            float(skill.workplane_normal[1]),
-            float(skill.workplane_normal[2]),
-        ),
-        torque_policy=bool(skill.fixed_orientation) and skill.constraint_type == "revolute",
-        rotation_radius=radius,
-        goal_travel=goal_travel,
-        goal_rotation=goal_rotation,
-    )
-    rate = None
-    if cfg.constraint_type == "revolute" and radius:
-        rate = cfg.step_length / sim.control_period / radius  # w_d = v_d / r
-    normal = np.asarray(cfg.workplane_normal, dtype=float)
-    ctrl = make_controller(controller, policy, rate, normal)
+    cfg, ctrl = manipulation_setup(skill, task, sim.control_period, controller, policy)
     d0 = np.asarray(skill.initial_direction, dtype=float)
     truth_d = sim.admissible_direction()
     label = {

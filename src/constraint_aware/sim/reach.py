@@ -1,0 +1,560 @@
+"""The simulated robots as the execution sequence (lfo/sequence.py) sees them: the executor's
+`Robot` protocol, a hand that pre-shapes, closes by force-exertion type and opens, a home, and
+paths between poses (for the Jaco: collision-aware joint paths from mink's differential IK).
+
+`SequenceRobot` wraps an embodiment and forwards only the Robot protocol's members; the
+simulator's ground truth (the object's pose, joint, the task monitor) is not reachable through
+it. Where the hand holds a handle it is told (`grasp_pose_at`: a contact point and an
+orientation, both perceived); how each hand holds each handle shape is the hand's own
+knowledge (the finger angles of sim.tasks.HANDLE_GRASPS for the hook hand, sim.jaco.JACO_GRASPS
+for the Jaco).
+
+The Jaco's paths (`JacoPlanner`): mink's differential inverse kinematics from the current joint
+angles toward a tool pose or a joint configuration, one control period per iteration, under
+the joint limits, a joint speed limit and collision avoidance between every arm and hand geom
+and every part of the object and its furniture as the robot believes them to be (the object
+built from the demonstration, lfo/scene.py, at the joint position the robot estimates): the
+robot's own model, never the simulated object. The joint path is re-timed so that the tool
+point moves at most `MoveConfig.speed`, and each period's tool pose is commanded with its joint
+posture (the controller's null space follows the planned arm configuration).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from constraint_aware.control.approach import MoveConfig, Waypoint, straight_line
+from constraint_aware.errors import CapError, UnknownNameError
+from constraint_aware.geometry import FloatArray
+from constraint_aware.sim.embodiment import Embodiment
+from constraint_aware.sim.jaco import (
+    ARM_JOINTS,
+    BASE_PLACEMENT,
+    FINGER_JOINTS,
+    JACO_GRASPS,
+    TCP_SITE,
+    JacoSim,
+    arm_base,
+    build_spec,
+)
+from constraint_aware.sim.objects import object_frame
+from constraint_aware.sim.scene import OBJECT_PREFIX
+from constraint_aware.sim.tasks import HANDLE_GRASPS, TaskConfig
+from constraint_aware.sim.world import ManipulationSim
+from constraint_aware.spatial import Pose, Wrench
+
+HANDLE_SHAPES = ("bar", "pole", "plate", "knob")
+#: [rad] the hook hand's fingers before the approach (+ closes, - opens): open around a bar,
+#: a pole and a knob; straight (the tip pads press) over a plate.
+HOOK_PRESHAPE = {"bar": -0.9, "pole": -0.9, "plate": 0.0, "knob": -0.6}
+HOOK_OPEN = -0.9  # [rad] released
+#: [rad] the Jaco's fingers before the approach (0 open, 1.5 closed): open around a bar or a
+#: pole, the grasp's own start shape over a plate (a fist) and a knob.
+JACO_PRESHAPE = {"bar": 0.2, "pole": 0.3, "plate": JACO_GRASPS["plate"].finger_start,
+                 "knob": JACO_GRASPS["knob"].finger_start}  # fmt: skip
+JACO_OPEN = 0.2  # [rad] released
+
+
+def _check_shape(shape: str) -> str:
+    if shape not in HANDLE_SHAPES:
+        raise UnknownNameError("handle shape", shape, HANDLE_SHAPES)
+    return shape
+
+
+class SequenceRobot:
+    """An embodiment behind the Robot protocol plus its hand and home (module docstring)."""
+
+    name = "robot"
+
+    def __init__(self, sim: Embodiment) -> None:
+        self._sim = sim
+
+    # --- the Robot protocol ----------------------------------------------------------------
+    @property
+    def control_period(self) -> float:
+        return float(self._sim.control_period_s)
+
+    def read_wrench(self) -> Wrench:
+        return self._sim.read_wrench()
+
+    def read_pose(self) -> Pose:
+        return self._sim.read_pose()
+
+    def commanded_pose(self) -> Pose:
+        return self._sim.commanded_pose()
+
+    def command_pose(self, pose: Pose) -> None:
+        self._sim.command_pose(pose)
+
+    def advance(self) -> None:
+        self._sim.advance()
+
+    def hold(self) -> None:
+        self._sim.hold()
+
+    def grasp_contact(self) -> bool | None:
+        return self._sim.grasp_contact()
+
+    @property
+    def translational_stiffness(self) -> float:
+        return float(self._sim.translational_stiffness)
+
+    @property
+    def tracking_time_constant(self) -> float:
+        return float(self._sim.tracking_time_constant)
+
+    # --- the hand --------------------------------------------------------------------------
+    @property
+    def settle_time(self) -> float:
+        """[s] how long closing or opening the hand takes (and settling after it)."""
+        return float(self._sim.settle_time)
+
+    @staticmethod
+    def press_depth(shape: str) -> float:
+        """[m] how far past first contact a passive closure presses the tool point into the
+        handle along the approach (sim.tasks.HANDLE_GRASPS)."""
+        return float(HANDLE_GRASPS[_check_shape(shape)].get("press_depth", 0.0))
+
+    def preshape(self, shape: str) -> None:
+        raise NotImplementedError
+
+    def close_hand(self, shape: str) -> None:
+        raise NotImplementedError
+
+    def open_hand(self) -> None:
+        raise NotImplementedError
+
+    def grasp_pose_at(self, point: FloatArray, orientation: Rotation, shape: str) -> Pose:
+        """The tool pose that holds a `shape` handle whose grasp centre is `point` (3,) [m]
+        with the hand at `orientation`."""
+        return self._sim.grasp_pose_at(point, orientation, _check_shape(shape))  # type: ignore[attr-defined]
+
+    def believe(self, task: TaskConfig, joint_position: float) -> None:
+        """What the robot believes about the object (for paths around it): `task`'s object
+        at `joint_position` [m or rad]. The hook hand's paths ignore it."""
+        del task, joint_position
+
+    def ready_for_manipulation(self) -> None:
+        """Fix the arm's tracking time constant at the grasp configuration (the Robot
+        protocol's optional member, measured there once, as at reset)."""
+        self._sim._tracking_time_constant = self._sim._free_space_time_constant()
+
+    # --- home and paths --------------------------------------------------------------------
+    def start_at_home(self, shape: str) -> None:
+        raise NotImplementedError
+
+    def home_pose(self) -> Pose:
+        raise NotImplementedError
+
+    def path_to(self, goal: Pose, config: MoveConfig) -> list[Waypoint]:
+        """Per-period setpoints from the current setpoint to `goal` (a straight line)."""
+        return straight_line(self.commanded_pose(), goal, config, self.control_period)
+
+    def path_home(self, config: MoveConfig) -> list[Waypoint]:
+        return self.path_to(self.home_pose(), config)
+
+
+def believed_handle(task: TaskConfig, joint_position: float) -> FloatArray:
+    """(2, 3) [m] the handle as a segment (its two ends) at `joint_position` [m or rad] of
+    `task`'s object: a bar or pole along its length, a plate or knob as its centre."""
+    obj = task.object
+    frame = object_frame(obj)
+    centre = np.asarray(obj.handle_position, dtype=float)
+    if obj.handle == "bar":
+        along = frame[:, 2] if obj.joint_type == "revolute" else frame[:, 1]
+        half = 0.5 * obj.handle_length
+    elif obj.handle == "pole":
+        along, half = frame[:, 2], 0.5 * obj.handle_length
+    else:
+        along, half = frame[:, 2], 0.0
+    ends = np.stack([centre - half * along, centre + half * along])
+    if obj.joint_type == "prismatic":
+        return ends + joint_position * np.asarray(obj.axis, dtype=float)
+    turn = Rotation.from_rotvec(joint_position * np.asarray(obj.axis, dtype=float))
+    pivot = np.asarray(obj.position, dtype=float)
+    return np.asarray(pivot + turn.apply(ends - pivot))
+
+
+def _segment_distance(points: FloatArray, ends: FloatArray) -> float:
+    """[m] the least distance of points (N, 3) from the segment `ends` (2, 3)."""
+    a, b = ends
+    ab = b - a
+    denom = float(ab @ ab)
+    t = np.zeros(len(points)) if denom < 1e-12 else np.clip((points - a) @ ab / denom, 0, 1)
+    return float(np.min(np.linalg.norm(points - (a + t[:, None] * ab), axis=1)))
+
+
+class HookHandRobot(SequenceRobot):
+    """The hook hand on its virtual Cartesian arm (sim/world.py); home: a pose given by the
+    station (the hand floats: no base). Its way home keeps `clearance` from the handle as
+    the robot believes it moved (the hand touches nothing else of the object)."""
+
+    name = "hook-hand"
+    clearance = 0.08  # [m] from the believed handle's segment
+    #: via points tried on the way home, in the hand's (back along its axis, up) [m]
+    VIAS = ((0.0, 0.0), (0.1, 0.0), (0.1, 0.15), (0.0, 0.2), (0.15, 0.25), (0.25, 0.35))
+
+    def __init__(self, sim: ManipulationSim, home: Pose) -> None:
+        super().__init__(sim)
+        self._hook = sim
+        self._home = home
+        self._handle: FloatArray | None = None
+
+    def believe(self, task: TaskConfig, joint_position: float) -> None:
+        self._handle = believed_handle(task, joint_position)
+
+    def path_home(self, config: MoveConfig) -> list[Waypoint]:
+        start = self.commanded_pose()
+        if self._handle is None:
+            return straight_line(start, self._home, config, self.control_period)
+        axis = start.orientation.apply([0.0, 0.0, 1.0])
+        up = np.array([0.0, 0.0, 1.0])
+        for back, lift in self.VIAS:
+            via = start.moved(-back * axis + lift * up)
+            legs = [start, via, self._home] if back or lift else [start, self._home]
+            path = [
+                w
+                for a, b in itertools.pairwise(legs)
+                for w in straight_line(a, b, config, self.control_period)
+            ]
+            points = np.array([w.pose.position for w in path])
+            if _segment_distance(points, self._handle) >= self.clearance:
+                return path
+        return straight_line(start, self._home, config, self.control_period)
+
+    def preshape(self, shape: str) -> None:
+        self._hook.set_fingers(HOOK_PRESHAPE[_check_shape(shape)])
+
+    def close_hand(self, shape: str) -> None:
+        self._hook.set_fingers(float(HANDLE_GRASPS[_check_shape(shape)]["finger_angle"]))
+
+    def open_hand(self) -> None:
+        self._hook.set_fingers(HOOK_OPEN)
+
+    def home_pose(self) -> Pose:
+        return self._home
+
+    def start_at_home(self, shape: str) -> None:
+        self._hook.start_at(self._home, HOOK_PRESHAPE[_check_shape(shape)])
+
+
+class JacoRobot(SequenceRobot):
+    """The Jaco arm and hand (sim/jaco.py); home: a joint configuration; paths: `JacoPlanner`."""
+
+    name = "jaco"
+
+    def __init__(self, sim: JacoSim, home: FloatArray, planner: JacoPlanner) -> None:
+        super().__init__(sim)
+        self._jaco = sim
+        self._home = np.asarray(home, dtype=float)
+        self.planner = planner
+
+    def preshape(self, shape: str) -> None:
+        self._jaco.set_fingers(JACO_PRESHAPE[_check_shape(shape)])
+
+    def close_hand(self, shape: str) -> None:
+        self._jaco.set_fingers(JACO_GRASPS[_check_shape(shape)].finger_target)
+
+    def open_hand(self) -> None:
+        self._jaco.set_fingers(JACO_OPEN)
+
+    def set_posture(self, q: FloatArray) -> None:
+        self._jaco.set_posture(q)
+
+    def believe(self, task: TaskConfig, joint_position: float) -> None:
+        self.planner.set_object(task, joint_position)
+
+    def ready_for_manipulation(self) -> None:
+        self._jaco.set_posture(self._jaco.joint_positions())
+        super().ready_for_manipulation()
+
+    def home_pose(self) -> Pose:
+        return self.planner.tool_pose(self._home)
+
+    def start_at_home(self, shape: str) -> None:
+        self._jaco.start_at_joints(self._home, JACO_PRESHAPE[_check_shape(shape)])
+
+    def path_to(self, goal: Pose, config: MoveConfig) -> list[Waypoint]:
+        return self.planner.plan(self._jaco.joint_positions(), goal, config, self.control_period)
+
+    def path_home(self, config: MoveConfig) -> list[Waypoint]:
+        return self.planner.plan(
+            self._jaco.joint_positions(), self._home, config, self.control_period
+        )
+
+
+class PlanningError(CapError):
+    """No collision-free joint path to the goal was found."""
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """mink's differential IK as a path planner. Units in brackets."""
+
+    joint_speed: float = 0.6  # [rad/s] each arm joint
+    clearance: float = 0.02  # [m] kept between the arm and the object (as the robot sees it)
+    detection: float = 0.15  # [m] collision pairs closer than this are constrained
+    position_tolerance: float = 0.003  # [m] the goal pose is reached within this ...
+    rotation_tolerance: float = 0.02  # [rad] ... and this
+    joint_tolerance: float = 0.01  # [rad] a joint goal is reached within this, each joint
+    max_periods: int = 300  # iterations (control periods of joint motion) before giving up
+    orientation_cost: float = 0.5  # [-] relative to the position's 1
+    posture_cost: float = 1e-3  # [-] toward the start configuration (regularization)
+    damping: float = 1e-3
+
+
+class JacoPlanner:
+    """Joint paths for the Jaco standing at `base` (3,) [m] around the object the robot
+    believes in (`set_object`), by mink (module docstring)."""
+
+    def __init__(self, base: FloatArray, config: PlannerConfig | None = None) -> None:
+        self.base = np.asarray(base, dtype=float)
+        self.config = config or PlannerConfig()
+        self._model: mujoco.MjModel | None = None
+        self._joint = 0.0
+
+    def set_object(self, task: TaskConfig, joint_position: float = 0.0) -> None:
+        """The object as the robot believes it: `task`'s object (built from the demonstration)
+        with its joint at `joint_position` [m or rad]."""
+        self._model = build_spec(task, self.base, solid_for_arms=True).compile()
+        self._joint = float(joint_position)
+        m = self._model
+        self._arm_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in ARM_JOINTS])
+        self._arm_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in ARM_JOINTS])
+        frozen = [m.jnt_dofadr[m.joint(j).id] for j in FINGER_JOINTS]
+        frozen.append(int(m.jnt_dofadr[m.joint(OBJECT_PREFIX + "object_joint").id]))
+        self._frozen = frozen
+        self._object_qpos = int(m.jnt_qposadr[m.joint(OBJECT_PREFIX + "object_joint").id])
+        robot = [g for g in range(m.ngeom) if m.body(m.geom_bodyid[g]).name.startswith("jaco/")]
+        scene = [g for g in range(m.ngeom) if m.geom(g).name.startswith(OBJECT_PREFIX)]
+        self._pairs = [([m.geom(g).name for g in robot], [m.geom(g).name for g in scene])]
+        # the arm's links: the base stands on the floor, away from the object
+        self._robot_geoms = [g for g in robot if m.body(m.geom_bodyid[g]).name != "jaco/b_base"]
+        self._scene_geoms = scene
+        self._scratch = mujoco.MjData(m)
+        self._tcp = m.site(TCP_SITE).id
+        joints = [m.joint(j).id for j in ARM_JOINTS]
+        self._limited = np.array([bool(m.jnt_limited[j]) for j in joints])
+        self._range = np.array([m.jnt_range[j] for j in joints])
+
+    @property
+    def model(self) -> mujoco.MjModel:
+        if self._model is None:
+            raise CapError("JacoPlanner: set_object() first")
+        return self._model
+
+    def _full(self, q: FloatArray) -> FloatArray:
+        """The planning model's qpos for arm angles `q`: the fingers and the object at rest
+        inside their ranges (they are frozen), the object at its believed position."""
+        m = self.model
+        full = np.zeros(m.nq)
+        for j in range(m.njnt):
+            if m.jnt_limited[j]:
+                full[m.jnt_qposadr[j]] = np.clip(0.0, *m.jnt_range[j])
+        full[self._arm_qpos] = q
+        full[self._object_qpos] = self._joint
+        return full
+
+    def _configuration(self, q: FloatArray) -> Any:
+        """mink's configuration of the planning model at arm angles `q`."""
+        import mink
+
+        return mink.Configuration(self.model, self._full(q))
+
+    def tool_pose(self, q: FloatArray) -> Pose:
+        """The tool pose at joint angles `q` (6,) [rad] (forward kinematics)."""
+        m = self.model
+        d = self._scratch
+        d.qpos[:] = self._full(q)
+        mujoco.mj_kinematics(m, d)
+        site = self._tcp
+        return Pose(d.site_xpos[site].copy(), Rotation.from_matrix(d.site_xmat[site].reshape(3, 3)))
+
+    def clearance(self, q: FloatArray) -> float:
+        """[m] the smallest distance between an arm geom and the object at `q` (negative:
+        inside), up to 0.5 m."""
+        m = self.model
+        d = self._scratch
+        d.qpos[:] = self._full(q)
+        mujoco.mj_kinematics(m, d)
+        best = 0.5
+        for a in self._robot_geoms:
+            for b in self._scene_geoms:
+                best = min(best, mujoco.mj_geomDistance(m, d, a, b, 0.5, None))
+        return float(best)
+
+    def solve_ik(self, pose: Pose, near: FloatArray) -> FloatArray:
+        """(6,) [rad] joint angles putting the tool at `pose`, clear of the object by at
+        least `clearance`, nearest (in joint space) to `near`; damped least squares from
+        `near` and from the arm's usual elbow-up seeds. PlanningError when none."""
+        seeds = [np.asarray(near, dtype=float)]
+        rel = pose.position - self.base
+        yaw = -math.atan2(rel[1], rel[0])
+        for dyaw in (0.0, 0.8, -0.8, 1.6, -1.6, math.pi):
+            for q2, q3 in ((2.6, 1.2), (3.6, 5.0), (2.9, 1.7)):
+                seeds.append(np.array([yaw + dyaw, q2, q3, 4.0, 0.0, 0.0]))
+        found: list[FloatArray] = []
+        for seed in seeds:
+            q = self._ik_from(seed, pose)
+            if q is not None and self.clearance(q) >= self.config.clearance:
+                found.append(q)
+        if not found:
+            raise PlanningError("no collision-free joint angles reach the goal pose")
+        return min(found, key=lambda q: float(np.sum(_wrapped(q - near) ** 2)))
+
+    def _ik_from(self, q: FloatArray, pose: Pose) -> FloatArray | None:
+        m, d = self.model, self._scratch
+        jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        lo, hi = self._range[:, 0], self._range[:, 1]
+        target_rot = pose.orientation.as_matrix()
+        for _ in range(200):
+            d.qpos[:] = self._full(q)
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_comPos(m, d)
+            rot = d.site_xmat[self._tcp].reshape(3, 3)
+            err = np.concatenate(
+                [pose.position - d.site_xpos[self._tcp], _rotvec(target_rot @ rot.T)]
+            )
+            if float(np.linalg.norm(err[:3])) < 1e-4 and float(np.linalg.norm(err[3:])) < 1e-3:
+                return np.asarray(q, dtype=float)
+            mujoco.mj_jacSite(m, d, jacp, jacr, self._tcp)
+            jac = np.vstack([jacp, jacr])[:, self._arm_dof]
+            step = jac.T @ np.linalg.solve(jac @ jac.T + 1e-4 * np.eye(6), err)
+            q = q + np.clip(step, -0.3, 0.3)
+            q = np.where(self._limited, np.clip(q, lo, hi), q)
+        return None
+
+    def plan(
+        self, start: FloatArray, goal: Pose | FloatArray, move: MoveConfig, period: float
+    ) -> list[Waypoint]:
+        """Waypoints (one per control period) from joint angles `start` (6,) [rad] to a tool
+        pose (through the nearest collision-free inverse-kinematics solution) or to joint
+        angles `goal`: mink's differential IK toward the goal angles under the joint limits,
+        the joint speed limit and collision avoidance; PlanningError when it does not arrive
+        within `max_periods`."""
+        import mink
+
+        c = self.config
+        start = np.asarray(start, dtype=float)
+        target = self.solve_ik(goal, start) if isinstance(goal, Pose) else np.asarray(goal, float)
+        # the goal's angles unwrapped next to the start's (continuous joints: no full turns)
+        target = start + _wrapped(target - start)
+        m = self.model
+        cfg = self._configuration(start)
+        posture = mink.PostureTask(m, cost=1.0)
+        posture.set_target(self._full(target))
+        speeds = {m.joint(j).name: c.joint_speed for j in ARM_JOINTS}
+        limits = [
+            mink.ConfigurationLimit(m),
+            mink.VelocityLimit(m, speeds),
+            mink.CollisionAvoidanceLimit(
+                m, self._pairs, minimum_distance_from_collisions=c.clearance,
+                collision_detection_distance=c.detection,
+            ),
+        ]  # fmt: skip
+        freeze = [mink.DofFreezingTask(m, dof_indices=self._frozen)]
+        path = [start.copy()]
+        for _ in range(c.max_periods):
+            q = cfg.q[self._arm_qpos]
+            if bool(np.all(np.abs(q - target) < c.joint_tolerance)):
+                break
+            velocity = mink.solve_ik(
+                cfg, [posture], period, "daqp", damping=c.damping, limits=limits, constraints=freeze
+            )
+            cfg.integrate_inplace(velocity, period)
+            path.append(cfg.q[self._arm_qpos].copy())
+        else:
+            left = float(np.max(np.abs(cfg.q[self._arm_qpos] - target)))
+            raise PlanningError(
+                f"no collision-free joint path to the goal within {c.max_periods} periods "
+                f"(stopped {left:.2f} rad from it)"
+            )
+        path.append(target)
+        return self._retime(path, move, period)
+
+    def _retime(self, path: list[FloatArray], move: MoveConfig, period: float) -> list[Waypoint]:
+        """The joint path resampled so that the tool point moves at most `move.speed` and
+        turns at most `move.turn_rate` per period; each waypoint the tool pose with its
+        joint posture."""
+        qs = np.asarray(path)
+        poses = [self.tool_pose(q) for q in qs]
+        out: list[Waypoint] = []
+        for i in range(1, len(qs)):
+            a, b = poses[i - 1], poses[i]
+            dist = float(np.linalg.norm(b.position - a.position))
+            turn = float((b.orientation * a.orientation.inv()).magnitude())
+            n = max(
+                1, math.ceil(max(dist / (move.speed * period), turn / (move.turn_rate * period)))
+            )
+            for k in range(1, n + 1):
+                q = qs[i - 1] + (k / n) * (qs[i] - qs[i - 1])
+                out.append(Waypoint(self.tool_pose(q), q))
+        if not out:
+            out.append(Waypoint(poses[0], qs[0]))
+        return out
+
+
+def _rotvec(rot: FloatArray) -> FloatArray:
+    return np.asarray(Rotation.from_matrix(rot).as_rotvec())
+
+
+def _wrapped(a: FloatArray) -> FloatArray:
+    return np.asarray((a + np.pi) % (2 * np.pi) - np.pi)
+
+
+#: Placements (distance [m], azimuth [deg], height [m], sim.jaco.arm_base) tried for the base
+#: when the kind's own (`BASE_PLACEMENT`) cannot reach the demonstrated motion, nearest first.
+BASE_CANDIDATES: tuple[tuple[float, float, float], ...] = tuple(
+    (reach, azimuth, height)
+    for reach in (0.45, 0.55, 0.35)
+    for azimuth in (0.0, 45.0, -45.0, 90.0, -90.0, 15.0, -15.0)
+    for height in (-0.3, -0.1)
+)
+
+
+def motion_poses(task: TaskConfig, grasp: Pose, fractions: tuple[float, ...]) -> list[Pose]:
+    """The tool poses that move with the handle from `grasp` at joint position 0 to the
+    given fractions of `task`'s success progress (a hinge turns the hand with it)."""
+    obj = task.object
+    axis = np.asarray(obj.axis, dtype=float)
+    out = []
+    for f in fractions:
+        q = f * task.success_progress
+        if obj.joint_type == "prismatic":
+            out.append(grasp.moved(q * axis))
+        else:
+            turn = Rotation.from_rotvec(q * axis)
+            pivot = np.asarray(obj.position, dtype=float)
+            position = pivot + turn.apply(grasp.position - pivot)
+            out.append(Pose(position, turn * grasp.orientation))
+    return out
+
+
+def choose_base(task: TaskConfig) -> tuple[FloatArray, tuple[float, float, float]]:
+    """Where the Jaco stands for `task` (the object as the robot believes it): the kind's
+    placement (sim.jaco.BASE_PLACEMENT) when the grasp at the start, half-way and the end of
+    the motion has an inverse-kinematics solution from it, else the first of
+    `BASE_CANDIDATES` that has; CapError when none has. Returns the base (3,) [m] and the
+    placement."""
+    kind = (task.object.joint_type, task.object.handle)
+    first = [BASE_PLACEMENT[kind]] if kind in BASE_PLACEMENT else []
+    for placement in [*first, *BASE_CANDIDATES]:
+        base = arm_base(task, placement)
+        sim = JacoSim(task, base=base)
+        try:
+            for pose in motion_poses(task, sim.grasp_pose(), (0.0, 0.5, 1.0)):
+                sim._solve_ik(pose)
+        except CapError:
+            continue
+        return base, placement
+    raise CapError(
+        f"the Jaco reaches the demonstrated motion of the {task.name} from none of "
+        f"{len(BASE_CANDIDATES) + len(first)} base placements"
+    )
