@@ -348,19 +348,27 @@ def _cell_grid() -> tuple[FloatArray, FloatArray]:
 #: point across the approach, and two dense layers on the features pooled under that heat
 #: map and over the whole map (with the shape as a one-hot) giving, per shape, the contact
 #: point's depth and the approach's tilt.
-CONV_LAYERS: tuple[tuple[int, int], ...] = ((8, 1), (16, 2), (16, 1), (32, 2), (32, 1))
+CONV_LAYERS: tuple[tuple[int, int], ...] = ((16, 2), (16, 1), (32, 2), (32, 1))
 INPUT_CHANNELS = 4
 HIDDEN = 64
 TILT_SCALE = 0.5  # the approach is unit(tilt_x * s, tilt_y * s, 1) in the crop frame
 
 
-def network_input(height: FloatArray) -> FloatArray:
-    """(4, CROP_PIXELS, CROP_PIXELS) float32 network input of one height map [m]."""
-    valid = np.isfinite(height)
+def network_input(heights: FloatArray) -> NDArray[np.float32]:
+    """(N, 4, CROP_PIXELS, CROP_PIXELS) float32 network inputs of height maps (N, P, P) [m]
+    (or (4, P, P) of one map (P, P))."""
+    h = np.asarray(heights, dtype=float)
+    single = h.ndim == 2
+    h = h[None] if single else h
+    valid = np.isfinite(h)
     c = cell_centres() / (0.5 * CROP_SIZE)
     xx, yy = np.meshgrid(c, c, indexing="ij")
-    h = np.where(valid, np.clip(height, -DEPTH_RANGE, DEPTH_RANGE) / DEPTH_RANGE, 0.0)
-    return np.stack([h, valid.astype(float), xx, yy]).astype(np.float32)
+    out = np.empty((len(h), INPUT_CHANNELS, CROP_PIXELS, CROP_PIXELS), dtype=np.float32)
+    out[:, 0] = np.where(valid, np.clip(h, -DEPTH_RANGE, DEPTH_RANGE) / DEPTH_RANGE, 0.0)
+    out[:, 1] = valid
+    out[:, 2] = xx
+    out[:, 3] = yy
+    return np.asarray(out[0] if single else out)
 
 
 def heat_grid() -> FloatArray:
@@ -404,7 +412,9 @@ def weight_shapes(conv_layers: tuple[tuple[int, int], ...] = CONV_LAYERS) -> dic
     return shapes
 
 
-def forward(weights: dict[str, FloatArray], x: FloatArray, shapes: FloatArray) -> FloatArray:
+def forward(
+    weights: dict[str, FloatArray], x: NDArray[np.floating], shapes: NDArray[np.integer]
+) -> FloatArray:
     """(N, 5) network outputs (x, y in CROP_SIZE / 2; depth in DEPTH_RANGE; tilt x, y) of
     inputs x (N, 4, CROP_PIXELS, CROP_PIXELS) for handle-shape indices (N,)."""
     h = np.asarray(x, dtype=np.float64)
@@ -520,7 +530,7 @@ class ContactPointRecognizer:
         """Crop-frame contact points (N, 3) [m] and approaches (N, 3) of height maps (N, H, W)
         [m] for their handle shapes (N names of `HANDLE_SHAPES`)."""
         idx = [_shape_index(s) for s in shapes]
-        x = np.stack([network_input(h) for h in heights])
+        x = network_input(np.asarray(heights))
         return decode(forward(self.weights, x, np.asarray(idx)))
 
     def recognize(self, height: FloatArray, frame: GraspFrame, shape: str) -> Recognition:

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from constraint_aware.bench.analysis import CellSummary, PolicySection
+from constraint_aware.bench.endtoend import report_lines as end_to_end_report_lines
 from constraint_aware.bench.placement import report_lines as placement_report_lines
 
 
@@ -227,6 +228,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
         lines += _embodiment_section(results["embodiment"], results["learning"]["policy"])
     if "placement" in results:
         lines.extend(placement_report_lines(results["placement"]))
+    if "end_to_end" in results:
+        lines.extend(end_to_end_report_lines(results["end_to_end"]))
     if results.get("worst_cases"):
         add("## Worst cases of the constraint-aware policy\n")
         add(

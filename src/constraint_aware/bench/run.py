@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from constraint_aware.bench import endtoend, placement
 from constraint_aware.bench import experiments as ex
-from constraint_aware.bench import placement
 from constraint_aware.bench.analysis import policy_section
 from constraint_aware.bench.embodiment import for_bench as embodiment_for_bench
 from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite
@@ -221,6 +221,7 @@ def _run_bench(
     results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds, policy).to_dict()
     all_runs = list(suite_runs)
     results["placement"] = placement.bench_section(quick, policy)
+    results["end_to_end"] = endtoend.bench_section(quick, policy)
     if not quick:
         heatmap, hm_runs = ex.offset_heatmap(cfg, policy)
         heatmap["full_success_halfwidth_deg"] = _full_success_halfwidth(heatmap)

@@ -54,8 +54,8 @@ from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import request_hold
 from constraint_aware.errors import CapError, UnknownNameError
 from constraint_aware.geometry import FloatArray, unit
-from constraint_aware.lfo.execute import SENSOR_NOISE, goal_label, manipulation_setup
 from constraint_aware.lfo.infer import SkillParameters
+from constraint_aware.lfo.manipulation import SENSOR_NOISE, goal_label, manipulation_setup
 from constraint_aware.lfo.perception import (
     corrected_skill,
     head_camera,

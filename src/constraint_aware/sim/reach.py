@@ -44,7 +44,7 @@ from constraint_aware.sim.jaco import (
     arm_base,
     build_spec,
 )
-from constraint_aware.sim.objects import object_frame
+from constraint_aware.sim.objects import VISUAL_GROUP, object_frame
 from constraint_aware.sim.scene import OBJECT_PREFIX
 from constraint_aware.sim.tasks import HANDLE_GRASPS, TaskConfig
 from constraint_aware.sim.world import ManipulationSim
@@ -338,6 +338,12 @@ class JacoPlanner:
         # the arm's links: the base stands on the floor, away from the object
         self._robot_geoms = [g for g in robot if m.body(m.geom_bodyid[g]).name != "jaco/b_base"]
         self._scene_geoms = scene
+        handle_body = m.body(OBJECT_PREFIX + "object").id
+        self._furniture_geoms = [
+            g
+            for g in scene
+            if not (m.geom_bodyid[g] == handle_body and m.geom_group[g] != VISUAL_GROUP)
+        ]
         self._scratch = mujoco.MjData(m)
         self._tcp = m.site(TCP_SITE).id
         joints = [m.joint(j).id for j in ARM_JOINTS]
@@ -377,44 +383,72 @@ class JacoPlanner:
         site = self._tcp
         return Pose(d.site_xpos[site].copy(), Rotation.from_matrix(d.site_xmat[site].reshape(3, 3)))
 
-    def clearance(self, q: FloatArray) -> float:
+    def clearance(self, q: FloatArray, handle: bool = True) -> float:
         """[m] the smallest distance between an arm geom and the object at `q` (negative:
-        inside), up to 0.5 m."""
+        inside), up to 0.5 m; without the handle's geoms unless `handle`."""
         m = self.model
         d = self._scratch
         d.qpos[:] = self._full(q)
         mujoco.mj_kinematics(m, d)
+        scene = self._scene_geoms if handle else self._furniture_geoms
         best = 0.5
         for a in self._robot_geoms:
-            for b in self._scene_geoms:
+            for b in scene:
                 best = min(best, mujoco.mj_geomDistance(m, d, a, b, 0.5, None))
         return float(best)
 
-    def solve_ik(self, pose: Pose, near: FloatArray) -> FloatArray:
+    def solve_ik(
+        self, pose: Pose, near: FloatArray, handle: bool = True, clearance: float | None = None
+    ) -> FloatArray:
         """(6,) [rad] joint angles putting the tool at `pose`, clear of the object by at
-        least `clearance`, nearest (in joint space) to `near`; damped least squares from
-        `near` and from the arm's usual elbow-up seeds. PlanningError when none."""
+        least `clearance` [m] (default the planner's; of everything but the handle unless
+        `handle`: a grasp holds it, its fingers reach behind it),
+        nearest (in joint space) to `near`; damped least squares from `near` and from the
+        arm's usual elbow-up seeds. PlanningError when none."""
+        seeds = self._seeds(pose, near)
+        need = self.config.clearance if clearance is None else clearance
+        found: list[FloatArray] = []
+        for seed in seeds:
+            q = self._ik_from(seed, pose)
+            if q is not None and self.clearance(q, handle) >= need:
+                found.append(q)
+                if len(found) >= 3:  # enough to choose the nearest from
+                    break
+        if not found:
+            raise PlanningError("no collision-free joint angles reach the goal pose")
+        return min(found, key=lambda q: float(np.sum(_wrapped(q - near) ** 2)))
+
+    def ik_solutions(self, pose: Pose, near: FloatArray) -> list[FloatArray]:
+        """Up to three collision-free joint solutions for `pose`, nearest to `near` first."""
+        first = self.solve_ik(pose, near)
+        found = [first]
+        for seed in self._seeds(pose, near)[1:]:
+            q = self._ik_from(seed, pose)
+            if q is None or self.clearance(q) < self.config.clearance:
+                continue
+            if all(float(np.max(np.abs(_wrapped(q - f)))) > 0.2 for f in found):
+                found.append(q)
+            if len(found) >= 3:
+                break
+        return sorted(found, key=lambda q: float(np.sum(_wrapped(q - near) ** 2)))
+
+    def _seeds(self, pose: Pose, near: FloatArray) -> list[FloatArray]:
+        """`near` and the arm's usual elbow-up and elbow-down seeds turned toward `pose`."""
         seeds = [np.asarray(near, dtype=float)]
         rel = pose.position - self.base
         yaw = -math.atan2(rel[1], rel[0])
         for dyaw in (0.0, 0.8, -0.8, 1.6, -1.6, math.pi):
             for q2, q3 in ((2.6, 1.2), (3.6, 5.0), (2.9, 1.7)):
                 seeds.append(np.array([yaw + dyaw, q2, q3, 4.0, 0.0, 0.0]))
-        found: list[FloatArray] = []
-        for seed in seeds:
-            q = self._ik_from(seed, pose)
-            if q is not None and self.clearance(q) >= self.config.clearance:
-                found.append(q)
-        if not found:
-            raise PlanningError("no collision-free joint angles reach the goal pose")
-        return min(found, key=lambda q: float(np.sum(_wrapped(q - near) ** 2)))
+        return seeds
 
     def _ik_from(self, q: FloatArray, pose: Pose) -> FloatArray | None:
         m, d = self.model, self._scratch
         jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
         lo, hi = self._range[:, 0], self._range[:, 1]
         target_rot = pose.orientation.as_matrix()
-        for _ in range(200):
+        best = math.inf
+        for i in range(200):
             d.qpos[:] = self._full(q)
             mujoco.mj_kinematics(m, d)
             mujoco.mj_comPos(m, d)
@@ -424,6 +458,11 @@ class JacoPlanner:
             )
             if float(np.linalg.norm(err[:3])) < 1e-4 and float(np.linalg.norm(err[3:])) < 1e-3:
                 return np.asarray(q, dtype=float)
+            size = float(np.linalg.norm(err))
+            if i % 25 == 24:  # no progress over 25 iterations: out of reach from this seed
+                if size > 0.9 * best:
+                    return None
+                best = size
             mujoco.mj_jacSite(m, d, jacp, jacr, self._tcp)
             jac = np.vstack([jacp, jacr])[:, self._arm_dof]
             step = jac.T @ np.linalg.solve(jac @ jac.T + 1e-4 * np.eye(6), err)
@@ -439,11 +478,24 @@ class JacoPlanner:
         angles `goal`: mink's differential IK toward the goal angles under the joint limits,
         the joint speed limit and collision avoidance; PlanningError when it does not arrive
         within `max_periods`."""
+
+        start = np.asarray(start, dtype=float)
+        targets = (
+            self.ik_solutions(goal, start) if isinstance(goal, Pose) else [np.asarray(goal, float)]
+        )
+        failures = []
+        for target in targets:
+            try:
+                return self._retime(self._joint_path(start, target, period), move, period)
+            except PlanningError as exc:
+                failures.append(str(exc))
+        raise PlanningError("; ".join(failures))
+
+    def _joint_path(self, start: FloatArray, target: FloatArray, period: float) -> list[FloatArray]:
+        """Joint angles per control period from `start` to `target` (mink, module docstring)."""
         import mink
 
         c = self.config
-        start = np.asarray(start, dtype=float)
-        target = self.solve_ik(goal, start) if isinstance(goal, Pose) else np.asarray(goal, float)
         # the goal's angles unwrapped next to the start's (continuous joints: no full turns)
         target = start + _wrapped(target - start)
         m = self.model
@@ -477,7 +529,7 @@ class JacoPlanner:
                 f"(stopped {left:.2f} rad from it)"
             )
         path.append(target)
-        return self._retime(path, move, period)
+        return path
 
     def _retime(self, path: list[FloatArray], move: MoveConfig, period: float) -> list[Waypoint]:
         """The joint path resampled so that the tool point moves at most `move.speed` and
@@ -513,9 +565,9 @@ def _wrapped(a: FloatArray) -> FloatArray:
 #: when the kind's own (`BASE_PLACEMENT`) cannot reach the demonstrated motion, nearest first.
 BASE_CANDIDATES: tuple[tuple[float, float, float], ...] = tuple(
     (reach, azimuth, height)
-    for reach in (0.45, 0.55, 0.35)
-    for azimuth in (0.0, 45.0, -45.0, 90.0, -90.0, 15.0, -15.0)
-    for height in (-0.3, -0.1)
+    for reach in (0.45, 0.35)
+    for azimuth in (45.0, -45.0, 90.0, -90.0, 0.0)
+    for height in (-0.2,)
 )
 
 
@@ -537,24 +589,41 @@ def motion_poses(task: TaskConfig, grasp: Pose, fractions: tuple[float, ...]) ->
     return out
 
 
-def choose_base(task: TaskConfig) -> tuple[FloatArray, tuple[float, float, float]]:
+def choose_base(
+    task: TaskConfig, pre_grasp: float = 0.10
+) -> tuple[FloatArray, tuple[float, float, float]]:
     """Where the Jaco stands for `task` (the object as the robot believes it): the kind's
-    placement (sim.jaco.BASE_PLACEMENT) when the grasp at the start, half-way and the end of
-    the motion has an inverse-kinematics solution from it, else the first of
-    `BASE_CANDIDATES` that has; CapError when none has. Returns the base (3,) [m] and the
-    placement."""
+    placement (sim.jaco.BASE_PLACEMENT) if from it, clear of the object (as `JacoPlanner`
+    checks), the arm reaches the pre-grasp `pre_grasp` [m] back from the grasp and the grasp
+    at the start, half-way and the end of the motion (clear of everything but the handle it
+    holds); else the first of `BASE_CANDIDATES` that does. CapError when none does. Returns
+    the base (3,) [m] and the placement."""
     kind = (task.object.joint_type, task.object.handle)
     first = [BASE_PLACEMENT[kind]] if kind in BASE_PLACEMENT else []
+    grasp = JacoSim(
+        task, base=arm_base(task, first[0] if first else BASE_CANDIDATES[0])
+    ).grasp_pose()
+    approach = grasp.orientation.apply([0.0, 0.0, 1.0])
+    pre = grasp.moved(-pre_grasp * approach)
+    motion = motion_poses(task, grasp, (0.0, 0.5, 1.0))
     for placement in [*first, *BASE_CANDIDATES]:
         base = arm_base(task, placement)
-        sim = JacoSim(task, base=base)
+        planner = JacoPlanner(base)
+        planner.set_object(task)
         try:
-            for pose in motion_poses(task, sim.grasp_pose(), (0.0, 0.5, 1.0)):
-                sim._solve_ik(pose)
-        except CapError:
+            q = planner.solve_ik(pre, _facing(base, pre.position))
+            for pose in motion:
+                q = planner.solve_ik(pose, q, handle=False, clearance=0.0)
+        except PlanningError:
             continue
         return base, placement
     raise CapError(
         f"the Jaco reaches the demonstrated motion of the {task.name} from none of "
         f"{len(BASE_CANDIDATES) + len(first)} base placements"
     )
+
+
+def _facing(base: FloatArray, point: FloatArray) -> FloatArray:
+    """(6,) [rad] an elbow-up seed turned toward `point` from `base`."""
+    rel = np.asarray(point) - base
+    return np.array([-math.atan2(rel[1], rel[0]), 2.9, 1.7, 4.0, 0.0, 0.0])

@@ -38,6 +38,7 @@ class GraspTrainConfig:
     tilt_scale: float = 0.05  # [-] the approach tilt's error is measured in these
     seed: int = 0
     threads: int = 1  # torch's intra-op threads (the machine is shared)
+    validation_samples: int = 1000  # crops scored after each epoch (the first ones)
 
     def __post_init__(self) -> None:
         n = "GraspTrainConfig."
@@ -45,6 +46,7 @@ class GraspTrainConfig:
         check_int(n + "batch_size", self.batch_size, low=1)
         check_int(n + "seed", self.seed, low=0)
         check_int(n + "threads", self.threads, low=1)
+        check_int(n + "validation_samples", self.validation_samples, low=1)
         for name in ("learning_rate", "position_scale", "tilt_scale"):
             check_number(n + name, getattr(self, name), low=0.0, low_open=True)
         check_number(n + "weight_decay", self.weight_decay, low=0.0)
@@ -107,7 +109,7 @@ class RecognizerNet(nn.Module):
 
 def inputs(heights: np.ndarray) -> np.ndarray:
     """(N, 4, P, P) float32 network inputs of height maps (N, P, P) [m]."""
-    return np.stack([rec.network_input(h) for h in heights]).astype(np.float32)
+    return np.asarray(rec.network_input(heights), dtype=np.float32)
 
 
 def _mirror(x: torch.Tensor, target: torch.Tensor, flip: torch.Tensor) -> None:
@@ -191,10 +193,10 @@ def train_recognizer(
             loss.backward()
             optimizer.step()
             schedule.step()
-            total += float(loss) * len(idx)
+            total += float(loss.item()) * len(idx)
         row = {"epoch": float(epoch + 1), "train_loss": total / n}
         if validation is not None:
-            row.update(evaluate(net.numpy_weights(), *validation))
+            row.update(_validate(net, validation, cfg.validation_samples))
         log.append(row)
         if progress is not None:
             progress(epoch + 1, row)
@@ -210,6 +212,35 @@ def train_recognizer(
     return GraspTrainResult(
         rec.ContactPointRecognizer(weights, meta), log, time.perf_counter() - start
     )
+
+
+def _validate(
+    net: RecognizerNet,
+    validation: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    limit: int,
+) -> dict[str, float]:
+    """`evaluate`'s errors on the first `limit` validation crops, with the torch network."""
+    heights, shapes, points, approaches = (v[:limit] for v in validation)
+    net.eval()
+    with torch.no_grad():
+        out = net(
+            torch.from_numpy(inputs(heights)), torch.from_numpy(np.asarray(shapes, np.int64))
+        ).numpy()
+    p, a = rec.decode(out)
+    return _errors(p, a, points, approaches)
+
+
+def _errors(
+    predicted: np.ndarray, approach: np.ndarray, points: np.ndarray, approaches: np.ndarray
+) -> dict[str, float]:
+    err = position_errors(predicted, points) * 1000.0
+    cos = np.clip(np.sum(approach * approaches, axis=1), -1.0, 1.0)
+    ang = np.degrees(np.arccos(cos))
+    return {
+        "val_median_mm": float(np.median(err)),
+        "val_p95_mm": float(np.percentile(err, 95)),
+        "val_approach_p95_deg": float(np.percentile(ang, 95)),
+    }
 
 
 def evaluate(
@@ -229,12 +260,4 @@ def evaluate(
         p, a = model.predict(heights[i : i + 256], names[i : i + 256])
         predicted.append(p)
         tilts.append(a)
-    p_all, a_all = np.concatenate(predicted), np.concatenate(tilts)
-    err = position_errors(p_all, points) * 1000.0
-    cos = np.clip(np.sum(a_all * approaches, axis=1), -1.0, 1.0)
-    ang = np.degrees(np.arccos(cos))
-    return {
-        "val_median_mm": float(np.median(err)),
-        "val_p95_mm": float(np.percentile(err, 95)),
-        "val_approach_p95_deg": float(np.percentile(ang, 95)),
-    }
+    return _errors(np.concatenate(predicted), np.concatenate(tilts), points, approaches)
