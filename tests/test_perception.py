@@ -34,7 +34,6 @@ from constraint_aware.sim.camera import (
     DepthCamera,
     DepthImage,
     DepthNoise,
-    RayCastCamera,
     add_camera,
     apply_noise,
     backproject,
@@ -62,19 +61,16 @@ def test_rendered_depth_is_the_geometry_along_each_pixel_ray() -> None:
     mujoco.mj_forward(model, data)
     with DepthCamera(model, mount, NO_NOISE) as camera:
         rendered = camera.true_depth(data)
-    cast = RayCastCamera(model, mount, NO_NOISE).true_depth(data)
-    near = np.isfinite(rendered) & np.isfinite(cast) & (rendered < 2.0)
+    near = np.isfinite(rendered) & (rendered < 2.0)
     assert near.mean() > 0.3
-    assert np.max(np.abs(rendered[near] - cast[near])) < 1e-5
-    # and each ray cast independently with mj_ray lands where the image says
     points = backproject(rendered, mount.intrinsics)
     rows, cols = np.nonzero(near)
-    for v, u in zip(rows[::97], cols[::97], strict=True):
+    for v, u in zip(rows[::29], cols[::29], strict=True):
         ray = mount.pose.rotation @ (points[v, u] / np.linalg.norm(points[v, u]))
         hit = mujoco.mj_ray(
             model, data, mount.pose.position, ray, None, 1, -1, np.zeros(1, np.int32)
         )
-        assert hit == pytest.approx(np.linalg.norm(points[v, u]), abs=1e-5)
+        assert hit == pytest.approx(np.linalg.norm(points[v, u]), rel=2e-4)  # float32 buffer
 
 
 def test_backprojection_and_projection_are_inverse() -> None:
@@ -176,10 +172,9 @@ def test_shipped_cnn_finds_contact_points_on_unseen_scenes(crops: object) -> Non
     from constraint_aware.lfo.grasp_training import score
 
     cnn = score(ContactPointRecognizer.load(), crops)  # type: ignore[arg-type]
-    table = cnn.table()["all"]
-    assert table["median_mm"] < 8.0
+    assert np.median(cnn.position) < 0.008
     assert np.all(cnn.position < 0.04)  # nothing grossly off on any kind
-    assert table["approach_p95_deg"] < 10.0
+    assert np.percentile(cnn.approach, 95) < 10.0
 
 
 def test_geometric_baseline_finds_bars_and_plates(crops: object) -> None:
@@ -232,11 +227,11 @@ def test_recognizer_weights_are_validated(tmp_path: Path) -> None:
     with np.load(path) as data:
         weights = {k: data[k] for k in data.files}
     bad = dict(weights, heat_w=np.full(weights["heat_w"].shape, np.nan, np.float32))
-    np.savez(path, **bad)  # type: ignore[arg-type]
+    np.savez(path, **bad)
     with pytest.raises(RecognizerFileError, match="'heat_w' must be finite"):
         ContactPointRecognizer.load(path)
     short = {k: v for k, v in weights.items() if k != "fc1_b"}
-    np.savez(path, **short)  # type: ignore[arg-type]
+    np.savez(path, **short)
     with pytest.raises(RecognizerFileError, match="'fc1_b' missing"):
         ContactPointRecognizer.load(path)
     assert set(weight_shapes()) == set(weights)

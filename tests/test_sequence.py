@@ -19,7 +19,7 @@ from constraint_aware.control.approach import (
 )
 from constraint_aware.spatial import Pose, Wrench
 
-I = Rotation.identity()
+IDENTITY = Rotation.identity()
 
 
 class FakeArm:
@@ -29,7 +29,7 @@ class FakeArm:
     control_period = 0.1
 
     def __init__(self, fault: Callable[[FakeArm, int], None] | None = None) -> None:
-        self.setpoint = Pose(np.zeros(3), I)
+        self.setpoint = Pose(np.zeros(3), IDENTITY)
         self.position = np.zeros(3)
         self.force = np.array([0.0, 0.0, -6.0])  # the hand's weight
         self.pose_fault = False
@@ -44,7 +44,7 @@ class FakeArm:
 
     def read_pose(self) -> Pose:
         p = np.full(3, np.nan) if self.pose_fault else self.position.copy()
-        return Pose(p, I)
+        return Pose(p, IDENTITY)
 
     def commanded_pose(self) -> Pose:
         return self.setpoint
@@ -60,14 +60,17 @@ class FakeArm:
         if self.fault is not None:
             self.fault(self, self.period)
 
+    def grasp_contact(self) -> bool | None:
+        return None
+
     def hold(self) -> None:
         self.holds += 1
-        self.setpoint = Pose(self.position.copy(), I)
+        self.setpoint = Pose(self.position.copy(), IDENTITY)
 
 
 def _line(length: float = 0.1) -> list[Waypoint]:
     return straight_line(
-        Pose(np.zeros(3), I), Pose(np.array([length, 0.0, 0.0]), I), MoveConfig(), 0.1
+        Pose(np.zeros(3), IDENTITY), Pose(np.array([length, 0.0, 0.0]), IDENTITY), MoveConfig(), 0.1
     )
 
 
@@ -91,7 +94,7 @@ def _after(period: int, action: Callable[[FakeArm], None]) -> Callable[[FakeArm,
 @pytest.mark.parametrize(
     ("fault", "outcome", "reason"),
     [
-        (_after(6, lambda a: setattr(a, "force", np.array([np.nan, 0.0, 0.0]))), "nan", "not finite"),
+        (_after(6, lambda a: setattr(a, "force", np.full(3, np.nan))), "nan", "not finite"),
         (_after(6, lambda a: setattr(a, "pose_fault", True)), "bad_pose", "not finite"),
         (_after(6, lambda a: setattr(a, "force", np.array([0.0, 0.0, 0.0]))), "force_limit",
          "unexpected contact"),
@@ -126,12 +129,12 @@ def test_contact_is_arrival_only_inside_the_contact_zone() -> None:
 
 def test_non_finite_or_oversized_setpoints_are_never_sent() -> None:
     path = _line()
-    jump = [*path[:3], Waypoint(Pose(np.array([0.5, 0.0, 0.0]), I)), *path[3:]]
+    jump = [*path[:3], Waypoint(Pose(np.array([0.5, 0.0, 0.0]), IDENTITY)), *path[3:]]
     arm = FakeArm()
     record = guarded_move(arm, "reach", jump)
     assert record.outcome == "bad_command" and "not sent" in record.reason
     assert all(np.linalg.norm(p.position) < 0.1 for p in arm.sent)
-    broken = [*path[:3], Waypoint(Pose(np.array([np.nan, 0.0, 0.0]), I))]
+    broken = [*path[:3], Waypoint(Pose(np.array([np.nan, 0.0, 0.0]), IDENTITY))]
     arm = FakeArm()
     assert guarded_move(arm, "reach", broken).outcome == "bad_command"
     assert all(np.all(np.isfinite(p.position)) for p in arm.sent)
@@ -219,7 +222,9 @@ def test_the_sequence_runs_from_home_to_home_without_ground_truth() -> None:
     progress = type(sim).progress(sim)
     assert progress == pytest.approx(place.goal, abs=0.03)
     assert record.manipulation is not None and record.manipulation.success
-    assert np.linalg.norm(sim.read_pose().position - result.station.home_pose.position) < 0.02
+    home = result.station.home_pose
+    assert home is not None
+    assert np.linalg.norm(sim.read_pose().position - home.position) < 0.02
     json.dumps(record.to_dict(), allow_nan=False)
 
 

@@ -807,11 +807,15 @@ def cmd_train_grasp(args: argparse.Namespace) -> int:
     table = Table(title="contact-point recognizers on the validation scenes")
     for col in ("method", "kind", "median [mm]", "p95 [mm]", "approach p95 [deg]"):
         table.add_column(col, justify="left" if col in ("method", "kind") else "right")
+
+    def cell(x: float | None) -> str:
+        return "no answer" if x is None else f"{x:.1f}"
+
     for method, rows in result.scores.items():
         for kind, r in rows.items():
             table.add_row(
-                method, kind, f"{r['median_mm']:.1f}", f"{r['p95_mm']:.1f}",
-                f"{r['approach_p95_deg']:.1f}",
+                method, kind, cell(r["median_mm"]), cell(r["p95_mm"]),
+                cell(r["approach_p95_deg"]),
             )  # fmt: skip
     out_console.print(table)
     if args.ship:

@@ -7,7 +7,7 @@ One scene: an object of one kind (sim.tasks.KINDS) at a random placement
 demonstration of it whose tracked point is offset from the handle (lfo.synthetic.HandOffset).
 The skill inferred from that demonstration places each robot's head camera
 (lfo.perception.head_camera) and the crop, exactly as at run time. Each camera gives a noisy
-depth image (sim.camera, ray cast over the crop's region: the renderer's geometry, faster);
+depth image (sim.camera, the run time's renderer, the noise drawn over the crops' region);
 besides the demonstration's own offset, `crops_per_view - 1` more offsets are drawn for the
 same image. Labels are the object's truth: the contact point of its handle shape
 (recognizer.py) and the hand mount's approach, in the crop frame.
@@ -44,8 +44,8 @@ from constraint_aware.recognizer import (
 )
 from constraint_aware.sim.camera import (
     CameraMount,
+    DepthCamera,
     DepthNoise,
-    RayCastCamera,
     add_camera,
     region_of_interest,
 )
@@ -228,7 +228,8 @@ def scene_samples(
         origins = [frame0.origin] + [truth0 + offset.draw(rng) for _ in range(crops_per_view - 1)]
         corners = np.concatenate([crop_corners(GraspFrame(o, frame0.rotation)) for o in origins])
         roi = region_of_interest(mount, corners)
-        image = RayCastCamera(model, mount, noise).capture(data, rng, roi)
+        with DepthCamera(model, mount, noise) as camera:
+            image = camera.capture(data, rng, roi)
         points = image.points()
         for origin in origins:
             frame = GraspFrame(np.asarray(origin), frame0.rotation)

@@ -43,21 +43,26 @@ class Scores:
     kinds: np.ndarray
     robots: np.ndarray
 
-    def table(self) -> dict[str, dict[str, float]]:
+    def table(self) -> dict[str, dict[str, float | None]]:
         """Per kind (and "all"): n, contact-point error median and 95th percentile [mm],
-        approach error 95th percentile [deg], and the share with no answer."""
-        out: dict[str, dict[str, float]] = {}
+        approach error 95th percentile [deg], and the share with no answer. A crop without
+        an answer counts as an infinite error: a percentile it reaches is None."""
+        out: dict[str, dict[str, float | None]] = {}
         for kind in [*dict.fromkeys(self.kinds.tolist()), "all"]:
             mask = np.ones(len(self.kinds), bool) if kind == "all" else self.kinds == kind
             pos, app = self.position[mask] * 1000.0, self.approach[mask]
             out[kind] = {
                 "n": float(mask.sum()),
-                "median_mm": float(np.median(pos)),
-                "p95_mm": float(np.percentile(pos, 95)),
-                "approach_p95_deg": float(np.percentile(app, 95)),
+                "median_mm": _finite(np.percentile(pos, 50, method="lower")),
+                "p95_mm": _finite(np.percentile(pos, 95, method="higher")),
+                "approach_p95_deg": _finite(np.percentile(app, 95, method="higher")),
                 "no_answer": float(np.mean(~np.isfinite(pos))),
             }
         return out
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
 
 
 def score(recognizer: Recognizer, data: GraspDataset) -> Scores:
@@ -90,7 +95,7 @@ class GraspTraining:
 
     recognizer: ContactPointRecognizer
     path: Path
-    scores: dict[str, dict[str, dict[str, float]]]
+    scores: dict[str, dict[str, dict[str, float | None]]]
     times: dict[str, float] = field(default_factory=dict)
 
 

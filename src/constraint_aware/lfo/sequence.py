@@ -171,10 +171,6 @@ def _strict(value: Any) -> Any:
     return value
 
 
-class SequenceError(CapError):
-    """An exception inside the sequence; the record is attached as `sequence_record`."""
-
-
 # --- the station: where the robot and its camera are, from the demonstration ----------------
 @dataclass(frozen=True)
 class Station:
@@ -202,16 +198,16 @@ def station_for(
     if spec.name == "hook-hand":
         home = frame.origin - cfg.hook_home_back * frame.rotation[:, 2] + cfg.hook_home_up * up
         return Station(spec.name, camera, home_pose=Pose(home, orientation))
-    from constraint_aware.sim.jaco import JacoSim
-    from constraint_aware.sim.reach import choose_base
+    from constraint_aware.sim.reach import JacoPlanner, choose_base, facing
 
     believed = scene_from_skill(skill).task
-    base, _ = choose_base(believed)
+    base, _ = choose_base(believed, cfg.pre_grasp)
     toward = frame.origin - base
     toward = unit(toward - float(toward @ up) * up)
     home_tool = base + cfg.jaco_home_forward * toward + cfg.jaco_home_up * up
-    solver = JacoSim(believed, base=base)
-    q = solver._solve_ik(Pose(home_tool, orientation))
+    planner = JacoPlanner(base)
+    planner.set_object(believed)
+    q = planner.solve_ik(Pose(home_tool, orientation), facing(base, home_tool))
     return Station(spec.name, camera, base=base, home_joints=q)
 
 
@@ -238,11 +234,6 @@ def _from_move(phase: PhaseRecord, move: MoveRecord) -> None:
     phase.periods += move.periods
     phase.peak_force = max(phase.peak_force, move.peak_force)
     phase.details.setdefault("moves", []).append(move.to_dict())
-
-
-MANIPULATION_FAILURES = {  # move outcomes as the phase names them
-    "contact": "force_limit",
-}
 
 
 def execute_sequence(
@@ -414,8 +405,7 @@ def _run_phases(
     phase.peak_force = manipulation.peak_force
     phase.details.update(outcome=manipulation.outcome, steps=manipulation.n_steps)
     if not manipulation.success:
-        outcome = MANIPULATION_FAILURES.get(manipulation.outcome, manipulation.outcome)
-        return _fail(robot, record, phase, outcome, manipulation.reason)
+        return _fail(robot, record, phase, manipulation.outcome, manipulation.reason)
     done(phase)
 
     # 6. release

@@ -10,11 +10,10 @@ depth * ((u + 0.5 - cx) / f, (v + 0.5 - cy) / f, 1) in the camera frame. `depth`
 distance along the optical axis [m] (not along the ray).
 
 Rendering. `DepthCamera` reads MuJoCo's offscreen depth buffer; on Linux without a display it
-runs on EGL (sim/render.py decides the backend the same way for colour images).
-`RayCastCamera` gives the same image by casting one ray per pixel (`mujoco.mj_multiRay`),
-optionally over a region of interest only: no OpenGL context, and a few hundredth of a second
-for a crop-sized region, which is what generating recognizer training data needs (the two
-agree to 1e-6 m, tests/test_perception.py).
+runs on EGL (sim/render.py decides the backend the same way for colour images). Its depth
+agrees with `mujoco.mj_ray` cast through each pixel to 0.02 % of the distance (its
+float32 buffer; tests/test_perception.py).
+`capture(..., roi=...)` draws the noise over a region of interest only (the rest is NaN).
 
 Noise (`DepthNoise`), as structured-light and stereo depth sensors show it (Nguyen, Izadi and
 Lovell 2012, for the Kinect; RealSense data sheets give the same quadratic growth):
@@ -308,68 +307,6 @@ def apply_noise(
     return out
 
 
-def _visible_groups(option: mujoco.MjvOption) -> FloatArray:
-    """(6,) uint8 the geom groups a renderer with `option` draws."""
-    return np.asarray(option.geomgroup, dtype=np.uint8)
-
-
-class RayCastCamera:
-    """A scene camera's depth images by ray casting (module docstring): the same geometry
-    `DepthCamera` renders, one ray per pixel, over the whole image or a region of interest."""
-
-    def __init__(
-        self, model: mujoco.MjModel, mount: CameraMount, noise: DepthNoise | None = None
-    ) -> None:
-        self.model = model
-        self.mount = mount
-        self.noise = DepthNoise() if noise is None else noise
-        self._groups = _visible_groups(mujoco.MjvOption())
-        intr = mount.intrinsics
-        f = intr.focal
-        cx, cy = intr.centre
-        u = (np.arange(intr.width) + 0.5 - cx) / f
-        v = (np.arange(intr.height) + 0.5 - cy) / f
-        rays = np.stack(np.broadcast_arrays(u[None, :], v[:, None], 1.0), axis=-1)
-        self._rays = rays  # (H, W, 3) camera-frame rays with unit z (depth = t)
-
-    def true_depth(
-        self, data: mujoco.MjData, roi: tuple[int, int, int, int] | None = None
-    ) -> FloatArray:
-        """(H, W) [m] the exact depth; NaN where no surface, and outside `roi` (row start,
-        row stop, column start, column stop) when given."""
-        intr = self.mount.intrinsics
-        v0, v1, u0, u1 = roi if roi is not None else (0, intr.height, 0, intr.width)
-        v0, u0 = max(v0, 0), max(u0, 0)
-        v1, u1 = min(v1, intr.height), min(u1, intr.width)
-        depth = np.full((intr.height, intr.width), np.nan)
-        if v1 <= v0 or u1 <= u0:
-            return depth
-        cam = self._rays[v0:v1, u0:u1].reshape(-1, 3)
-        length = np.linalg.norm(cam, axis=1)
-        world = (cam / length[:, None]) @ self.mount.pose.rotation.T
-        n = len(world)
-        geom = np.zeros(n, dtype=np.int32)
-        dist = np.zeros(n)
-        mujoco.mj_multiRay(
-            self.model, data, self.mount.pose.position, np.ascontiguousarray(world).reshape(-1),
-            self._groups, 1, -1, geom, dist, None, n, self.noise.max_range * 2.0,
-        )  # fmt: skip
-        z = np.where(geom >= 0, dist / length, np.nan)
-        depth[v0:v1, u0:u1] = z.reshape(v1 - v0, u1 - u0)
-        return depth
-
-    def capture(
-        self,
-        data: mujoco.MjData,
-        rng: np.random.Generator,
-        roi: tuple[int, int, int, int] | None = None,
-    ) -> DepthImage:
-        """A depth image at `data`'s state with the sensor's noise from `rng` (outside `roi`:
-        NaN)."""
-        depth = apply_noise(self.true_depth(data, roi), self.mount.intrinsics, self.noise, rng)
-        return DepthImage(depth, self.mount.intrinsics, self.mount.pose)
-
-
 def region_of_interest(
     mount: CameraMount, points: FloatArray, margin: int = 4
 ) -> tuple[int, int, int, int]:
@@ -391,13 +328,34 @@ def region_of_interest(
     )
 
 
+_MAX_GEOM = 2000  # geoms a depth image draws at most (the scenes hold a few hundred)
+
+
 class _EglDepthRenderer(render._EglRenderer):
     """Depth on an EGL context of our own (see sim/render.py: MuJoCo chose GLFW at import)."""
 
     def __init__(self, model: mujoco.MjModel, height: int, width: int) -> None:
-        super().__init__(model, height=height, width=width)
+        from mujoco.egl import GLContext
+
+        if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
+            raise CapError(
+                f"depth image {width}x{height} exceeds the model's offscreen buffer "
+                f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}"
+            )
+        self._gl = GLContext(width, height)
+        self._gl.make_current()
+        self._model = model
+        self._scene = mujoco.MjvScene(model, maxgeom=_MAX_GEOM)
+        self._option = mujoco.MjvOption()
+        self._perturb = mujoco.MjvPerturb()
+        # the smallest font: a depth image shows no text (the 150 % font costs ~0.5 s here)
+        self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_50.value)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._context)
         # the depth map mujoco.Renderer reads (and `_linear_depth` converts): 0 at the far plane
         self._context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        self._rect = mujoco.MjrRect(0, 0, width, height)
+        self._rgb = np.empty((height, width, 3), dtype=np.uint8)
+        self._camera = None
 
     def depth(self) -> FloatArray:
         self._gl.make_current()
@@ -458,7 +416,10 @@ class DepthCamera:
                 self._renderer._option = self._option
                 self._egl = True
             else:
-                self._renderer = mujoco.Renderer(model, height=h, width=w)
+                self._renderer = mujoco.Renderer(
+                    model, height=h, width=w, max_geom=_MAX_GEOM,
+                    font_scale=mujoco.mjtFontScale.mjFONTSCALE_50,
+                )  # fmt: skip
                 self._renderer.enable_depth_rendering()
                 self._egl = False
         except CapError:
@@ -484,9 +445,24 @@ class DepthCamera:
         far = self.model.vis.map.zfar * self.model.stat.extent
         return np.where(depth < 0.999 * far, depth, np.nan)
 
-    def capture(self, data: mujoco.MjData, rng: np.random.Generator) -> DepthImage:
-        """A depth image of the scene at `data`'s state, with the sensor's noise from `rng`."""
-        depth = apply_noise(self.true_depth(data), self.mount.intrinsics, self.noise, rng)
+    def capture(
+        self,
+        data: mujoco.MjData,
+        rng: np.random.Generator,
+        roi: tuple[int, int, int, int] | None = None,
+    ) -> DepthImage:
+        """A depth image of the scene at `data`'s state, with the sensor's noise from `rng`;
+        only inside `roi` (row start, row stop, column start, column stop [px]) when given,
+        NaN elsewhere."""
+        depth = self.true_depth(data)
+        if roi is not None:
+            v0, v1, u0, u1 = roi
+            inside = np.full(depth.shape, np.nan)
+            rows = slice(max(v0, 0), max(v1, 0))
+            cols = slice(max(u0, 0), max(u1, 0))
+            inside[rows, cols] = depth[rows, cols]
+            depth = inside
+        depth = apply_noise(depth, self.mount.intrinsics, self.noise, rng)
         return DepthImage(depth, self.mount.intrinsics, self.mount.pose)
 
     def close(self) -> None:

@@ -284,10 +284,31 @@ class JacoRobot(SequenceRobot):
     def path_to(self, goal: Pose, config: MoveConfig) -> list[Waypoint]:
         return self.planner.plan(self._jaco.joint_positions(), goal, config, self.control_period)
 
+    #: via tool points tried on the way home when the direct joint path is blocked, in the
+    #: hand's (back along its approach axis, up) [m]
+    VIAS = ((0.1, 0.15), (0.2, 0.0), (0.0, 0.25), (0.25, 0.3))
+
     def path_home(self, config: MoveConfig) -> list[Waypoint]:
-        return self.planner.plan(
-            self._jaco.joint_positions(), self._home, config, self.control_period
-        )
+        """A joint path home; when the object (as believed) blocks it, through a via tool
+        pose further back and up first (`VIAS`)."""
+        start = self._jaco.joint_positions()
+        period = self.control_period
+        try:
+            return self.planner.plan(start, self._home, config, period)
+        except PlanningError as exc:
+            failures = [str(exc)]
+        here = self.planner.tool_pose(start)
+        axis = here.orientation.apply([0.0, 0.0, 1.0])
+        for back, up in self.VIAS:
+            via = here.moved(-back * axis + np.array([0.0, 0.0, up]))
+            try:
+                first = self.planner.plan(start, via, config, period)
+                second = self.planner.plan(first[-1].posture, self._home, config, period)  # type: ignore[arg-type]
+            except PlanningError as exc:
+                failures.append(str(exc))
+                continue
+            return [*first, *second]
+        raise PlanningError("; ".join(failures[:2]))
 
 
 class PlanningError(CapError):
@@ -611,7 +632,7 @@ def choose_base(
         planner = JacoPlanner(base)
         planner.set_object(task)
         try:
-            q = planner.solve_ik(pre, _facing(base, pre.position))
+            q = planner.solve_ik(pre, facing(base, pre.position))
             for pose in motion:
                 q = planner.solve_ik(pose, q, handle=False, clearance=0.0)
         except PlanningError:
@@ -623,7 +644,7 @@ def choose_base(
     )
 
 
-def _facing(base: FloatArray, point: FloatArray) -> FloatArray:
+def facing(base: FloatArray, point: FloatArray) -> FloatArray:
     """(6,) [rad] an elbow-up seed turned toward `point` from `base`."""
     rel = np.asarray(point) - base
     return np.array([-math.atan2(rel[1], rel[0]), 2.9, 1.7, 4.0, 0.0, 0.0])
