@@ -86,7 +86,9 @@ class SequenceConfig:
     contact_zone: float = 0.02  # [m] contact within this of the grasp counts as arrival
     retreat: float = 0.10  # [m] back along the approach after release
     reach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.10))
-    approach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.03))
+    approach: MoveConfig = field(
+        default_factory=lambda: MoveConfig(speed=0.03, position_tolerance=0.003)
+    )
     leave: MoveConfig = field(
         default_factory=lambda: MoveConfig(speed=0.05, contact_limit=6.0, position_tolerance=0.02)
     )
@@ -357,11 +359,14 @@ def _run_phases(
     # 4. grasp: close by the force-exertion type, press (passive closures), settle
     phase = record.phase("grasp")
     phase.outcome = "running"
-    robot.hold()
     robot.close_hand(shape)
     press = robot.press_depth(shape)
-    here = robot.commanded_pose()
-    target = here.moved(press * _hand_axis(here)) if press > 0 else here
+    if press > 0:  # from where the surface was met, on into it
+        robot.hold()
+        here = robot.commanded_pose()
+        target = here.moved(press * _hand_axis(here))
+    else:  # the hand stays at the grasp while the fingers close around the handle
+        target = grasp
     settle = max(1, round(robot.settle_time / robot.control_period))
     touched = False
     for rounds in (1, 2):
