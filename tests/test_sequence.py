@@ -260,3 +260,40 @@ def test_a_fault_in_a_phase_stops_the_sequence_safely_with_its_record() -> None:
     assert record.phase("perceive").outcome == "ok"
     assert all(record.phase(p).outcome == "not_run" for p in ("approach", "grasp", "home"))
     assert holds  # the robot was told to hold
+
+
+# --- the command line -------------------------------------------------------------------------
+def test_cap_lfo_executes_the_sequence_from_home(tmp_path: Any) -> None:
+    from pathlib import Path
+
+    from constraint_aware.cli import main
+
+    demo = Path(__file__).resolve().parents[1] / "examples" / "drawer_demo.json"
+    out, rec = tmp_path / "s.json", tmp_path / "r.json"
+    assert main(["lfo", str(demo), "--execute", "--json", str(out), "--record", str(rec)]) == 0
+    execution = json.loads(out.read_text())["execution"]
+    assert execution["start"] == "home" and execution["success"] is True
+    phases = json.loads(rec.read_text())["phases"]
+    assert [p["outcome"] for p in phases] == ["ok"] * 8
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["train-grasp", "--scenes", "0"], "--scenes 0"),
+        (["train-grasp", "--data", "/nonexistent.npz"], "--data"),
+        (["lfo", "x.json", "--execute", "--video", "run.avi"], "suffix '.avi'"),
+        (["lfo", "x.json", "--execute", "--recognizer", "oracle"], "invalid choice"),
+    ],
+)
+def test_cli_input_errors_exit_2_naming_the_flag(
+    argv: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from constraint_aware.cli import main
+
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's own errors
+        code = int(exc.code or 0)
+    assert code == 2
+    assert message in capsys.readouterr().err

@@ -665,7 +665,11 @@ def _video_recorder(frames: list[Any]) -> Callable[[Any], None]:
 
     def on_period(sim: Any) -> None:
         if not renderer:
-            renderer.append(SceneRenderer(sim.model, lookat=sim.model.stat.center, distance=1.6))
+            renderer.append(
+                SceneRenderer(
+                    sim.model, width=480, height=360, lookat=sim.model.stat.center, distance=1.8
+                )
+            )
         frames.append(renderer[0].frame(sim.data))
 
     return on_period

@@ -91,6 +91,10 @@ def execute_from_home(
         skill, task, robot, controller, policy, seed, sensor_noise, found,
         SequenceConfig(recognizer=recognizer), on_phase, on_period,
     )  # fmt: skip
+    record = result.record
+    # scored afterwards against the simulated object (the sequence never read it)
+    sim = result.sim
+    d0 = np.asarray(skill.initial_direction, dtype=float)
     info = {
         "task": task.name,
         "kind": kind,
@@ -99,6 +103,12 @@ def execute_from_home(
         "notes": notes,
         "object": dataclasses.asdict(task.object),
         **goal_label(skill.constraint_type, float(skill.goal or 0.0)),
+        "success": record.success,
+        "failed_phase": record.failed_phase,
+        "reason": record.reason,
+        "progress": float(sim.progress()),
+        "peak_force_N": record.peak_force,
+        "initial_direction_error_deg": float(angle_deg(d0, task.object.opening_direction)),
     }
     return result, info
 
