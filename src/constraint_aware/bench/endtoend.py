@@ -262,19 +262,22 @@ def summarize(runs: list[SequenceRun]) -> list[dict[str, Any]]:
     return out
 
 
-#: `cap bench`'s reduced set: placements per kind and robot (full, quick), quick on the hook
-#: hand only.
-BENCH_PER_KIND = {False: 2, True: 1}
+#: `cap bench`'s reduced set: placements per kind and robot, robots and kinds (full, quick).
+BENCH_PER_KIND = {False: 1, True: 1}
+BENCH_ROBOTS = {False: ROBOTS, True: ("hook-hand",)}
+BENCH_KINDS = {False: KINDS, True: ("drawer",)}
 
 
 def bench_section(quick: bool, policy: ConstraintAwarePolicy | None = None) -> dict[str, Any]:
     """The end-to-end experiment as `cap bench` runs it (benchmarks/placement.py
     --end-to-end runs more)."""
-    robots = ("hook-hand",) if quick else ROBOTS
-    out = run_end_to_end(BENCH_PER_KIND[quick], robots, policy=policy).to_dict()
+    out = run_end_to_end(
+        BENCH_PER_KIND[quick], BENCH_ROBOTS[quick], kinds=BENCH_KINDS[quick], policy=policy
+    ).to_dict()
+    offset = HandOffset()
     out["full_benchmark_per_kind"] = FULL_PER_KIND
     out["noise_mm"] = NOISE * 1000.0
-    out["offset"] = dataclasses.asdict(HandOffset())
+    out["offset_cm"] = {"max": 100.0 * offset.max_offset, "jitter": 100.0 * offset.jitter}
     return out
 
 
@@ -284,12 +287,12 @@ def report_lines(section: dict[str, Any]) -> list[str]:
     def f(x: float | None, digits: int = 1) -> str:
         return "-" if x is None else f"{x:.{digits}f}"
 
-    off = section["offset"]
+    off = section["offset_cm"]
     lines = [
         "## End to end: see, reach, grasp, manipulate, release, return home\n",
         f"{section['per_kind']} random placements per kind and robot, each demonstrated once "
-        f"with the tracked point up to {off['max_offset'] * 100:g} cm (plus "
-        f"{off['jitter'] * 100:g} cm) from the handle and {section['noise_mm']:g} mm tracking "
+        f"with the tracked point up to {off['max']:g} cm (plus {off['jitter']:g} cm) from the "
+        f"handle and {section['noise_mm']:g} mm tracking "
         "noise; the robot starts at home, finds the contact point with the "
         f"`{section['recognizer']}` recognizer in one depth image of its head camera, and "
         "runs every phase with no access to the simulated object. Peak |F| is the "

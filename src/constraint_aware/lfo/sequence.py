@@ -516,7 +516,7 @@ def build_world(
     camera composed in; returns the embodiment and its `SequenceRobot` adapter."""
     spec = parse_robot(robot)
     if spec.name == "hook-hand":
-        from constraint_aware.sim.reach import HookHandRobot
+        from constraint_aware.lfo.robots import HookHandRobot
         from constraint_aware.sim.world import ManipulationSim, build_spec
 
         if spec.stiffness is not None:
@@ -529,9 +529,10 @@ def build_world(
         hook.set_sensor_noise(sensor_rng, sensor_noise)
         assert station.home_pose is not None
         return hook, HookHandRobot(hook, station.home_pose)
+    from constraint_aware.lfo.robots import JacoRobot
     from constraint_aware.sim.jaco import JacoSim, OscConfig
     from constraint_aware.sim.jaco import build_spec as jaco_spec
-    from constraint_aware.sim.reach import JacoPlanner, JacoRobot
+    from constraint_aware.sim.reach import JacoPlanner
 
     assert station.base is not None and station.home_joints is not None
     world = jaco_spec(task, station.base)

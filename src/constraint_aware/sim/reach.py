@@ -1,13 +1,6 @@
-"""The simulated robots as the execution sequence (lfo/sequence.py) sees them: the executor's
-`Robot` protocol, a hand that pre-shapes, closes by force-exertion type and opens, a home, and
-paths between poses (for the Jaco: collision-aware joint paths from mink's differential IK).
-
-`SequenceRobot` wraps an embodiment and forwards only the Robot protocol's members; the
-simulator's ground truth (the object's pose, joint, the task monitor) is not reachable through
-it. Where the hand holds a handle it is told (`grasp_pose_at`: a contact point and an
-orientation, both perceived); how each hand holds each handle shape is the hand's own
-knowledge (the finger angles of sim.tasks.HANDLE_GRASPS for the hook hand, sim.jaco.JACO_GRASPS
-for the Jaco).
+"""What the simulated robots know for the execution sequence (lfo/sequence.py, lfo/robots.py):
+how each hand pre-shapes and opens for each handle shape, where the handle is believed to be
+after a motion, and the Jaco's base placement and paths.
 
 The Jaco's paths (`JacoPlanner`): mink's differential inverse kinematics from the current joint
 angles toward a tool pose or a joint configuration, one control period per iteration, under
@@ -21,7 +14,6 @@ posture (the controller's null space follows the planned arm configuration).
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -30,10 +22,8 @@ import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from constraint_aware.control.approach import MoveConfig, Waypoint, straight_line
-from constraint_aware.errors import CapError, UnknownNameError
+from constraint_aware.errors import CapError
 from constraint_aware.geometry import FloatArray
-from constraint_aware.sim.embodiment import Embodiment
 from constraint_aware.sim.jaco import (
     ARM_JOINTS,
     BASE_PLACEMENT,
@@ -46,9 +36,8 @@ from constraint_aware.sim.jaco import (
 )
 from constraint_aware.sim.objects import VISUAL_GROUP, object_frame
 from constraint_aware.sim.scene import OBJECT_PREFIX
-from constraint_aware.sim.tasks import HANDLE_GRASPS, TaskConfig
-from constraint_aware.sim.world import ManipulationSim
-from constraint_aware.spatial import Pose, Wrench
+from constraint_aware.sim.tasks import TaskConfig
+from constraint_aware.spatial import Pose
 
 HANDLE_SHAPES = ("bar", "pole", "plate", "knob")
 #: [rad] the hook hand's fingers before the approach (+ closes, - opens): open around a bar,
@@ -60,105 +49,6 @@ HOOK_OPEN = -0.9  # [rad] released
 JACO_PRESHAPE = {"bar": 0.2, "pole": 0.3, "plate": JACO_GRASPS["plate"].finger_start,
                  "knob": JACO_GRASPS["knob"].finger_start}  # fmt: skip
 JACO_OPEN = 0.2  # [rad] released
-
-
-def _check_shape(shape: str) -> str:
-    if shape not in HANDLE_SHAPES:
-        raise UnknownNameError("handle shape", shape, HANDLE_SHAPES)
-    return shape
-
-
-class SequenceRobot:
-    """An embodiment behind the Robot protocol plus its hand and home (module docstring)."""
-
-    name = "robot"
-
-    def __init__(self, sim: Embodiment) -> None:
-        self._sim = sim
-
-    # --- the Robot protocol ----------------------------------------------------------------
-    @property
-    def control_period(self) -> float:
-        return float(self._sim.control_period_s)
-
-    def read_wrench(self) -> Wrench:
-        return self._sim.read_wrench()
-
-    def read_pose(self) -> Pose:
-        return self._sim.read_pose()
-
-    def commanded_pose(self) -> Pose:
-        return self._sim.commanded_pose()
-
-    def command_pose(self, pose: Pose) -> None:
-        self._sim.command_pose(pose)
-
-    def advance(self) -> None:
-        self._sim.advance()
-
-    def hold(self) -> None:
-        self._sim.hold()
-
-    def grasp_contact(self) -> bool | None:
-        return self._sim.grasp_contact()
-
-    @property
-    def translational_stiffness(self) -> float:
-        return float(self._sim.translational_stiffness)
-
-    @property
-    def tracking_time_constant(self) -> float:
-        return float(self._sim.tracking_time_constant)
-
-    # --- the hand --------------------------------------------------------------------------
-    @property
-    def settle_time(self) -> float:
-        """[s] how long closing or opening the hand takes (and settling after it)."""
-        return float(self._sim.settle_time)
-
-    @staticmethod
-    def press_depth(shape: str) -> float:
-        """[m] how far past first contact a passive closure presses the tool point into the
-        handle along the approach (sim.tasks.HANDLE_GRASPS)."""
-        return float(HANDLE_GRASPS[_check_shape(shape)].get("press_depth", 0.0))
-
-    def preshape(self, shape: str) -> None:
-        raise NotImplementedError
-
-    def close_hand(self, shape: str) -> None:
-        raise NotImplementedError
-
-    def open_hand(self) -> None:
-        raise NotImplementedError
-
-    def grasp_pose_at(self, point: FloatArray, orientation: Rotation, shape: str) -> Pose:
-        """The tool pose that holds a `shape` handle whose grasp centre is `point` (3,) [m]
-        with the hand at `orientation`."""
-        return self._sim.grasp_pose_at(point, orientation, _check_shape(shape))  # type: ignore[attr-defined]
-
-    def believe(self, task: TaskConfig, joint_position: float) -> None:
-        """What the robot believes about the object (for paths around it): `task`'s object
-        at `joint_position` [m or rad]. The hook hand's paths ignore it."""
-        del task, joint_position
-
-    def ready_for_manipulation(self) -> None:
-        """Fix the arm's tracking time constant at the grasp configuration (the Robot
-        protocol's optional member, measured there once, as at reset)."""
-        self._sim._tracking_time_constant = self._sim._free_space_time_constant()
-
-    # --- home and paths --------------------------------------------------------------------
-    def start_at_home(self, shape: str) -> None:
-        raise NotImplementedError
-
-    def home_pose(self) -> Pose:
-        raise NotImplementedError
-
-    def path_to(self, goal: Pose, config: MoveConfig) -> list[Waypoint]:
-        """Per-period setpoints from the current setpoint to `goal` (a straight line)."""
-        return straight_line(self.commanded_pose(), goal, config, self.control_period)
-
-    def path_home(self, config: MoveConfig) -> list[Waypoint]:
-        return self.path_to(self.home_pose(), config)
 
 
 def believed_handle(task: TaskConfig, joint_position: float) -> FloatArray:
@@ -182,133 +72,13 @@ def believed_handle(task: TaskConfig, joint_position: float) -> FloatArray:
     return np.asarray(pivot + turn.apply(ends - pivot))
 
 
-def _segment_distance(points: FloatArray, ends: FloatArray) -> float:
+def segment_distance(points: FloatArray, ends: FloatArray) -> float:
     """[m] the least distance of points (N, 3) from the segment `ends` (2, 3)."""
     a, b = ends
     ab = b - a
     denom = float(ab @ ab)
     t = np.zeros(len(points)) if denom < 1e-12 else np.clip((points - a) @ ab / denom, 0, 1)
     return float(np.min(np.linalg.norm(points - (a + t[:, None] * ab), axis=1)))
-
-
-class HookHandRobot(SequenceRobot):
-    """The hook hand on its virtual Cartesian arm (sim/world.py); home: a pose given by the
-    station (the hand floats: no base). Its way home keeps `clearance` from the handle as
-    the robot believes it moved (the hand touches nothing else of the object)."""
-
-    name = "hook-hand"
-    clearance = 0.08  # [m] from the believed handle's segment
-    #: via points tried on the way home, in the hand's (back along its axis, up) [m]
-    VIAS = ((0.0, 0.0), (0.1, 0.0), (0.1, 0.15), (0.0, 0.2), (0.15, 0.25), (0.25, 0.35))
-
-    def __init__(self, sim: ManipulationSim, home: Pose) -> None:
-        super().__init__(sim)
-        self._hook = sim
-        self._home = home
-        self._handle: FloatArray | None = None
-
-    def believe(self, task: TaskConfig, joint_position: float) -> None:
-        self._handle = believed_handle(task, joint_position)
-
-    def path_home(self, config: MoveConfig) -> list[Waypoint]:
-        start = self.commanded_pose()
-        if self._handle is None:
-            return straight_line(start, self._home, config, self.control_period)
-        axis = start.orientation.apply([0.0, 0.0, 1.0])
-        up = np.array([0.0, 0.0, 1.0])
-        for back, lift in self.VIAS:
-            via = start.moved(-back * axis + lift * up)
-            legs = [start, via, self._home] if back or lift else [start, self._home]
-            path = [
-                w
-                for a, b in itertools.pairwise(legs)
-                for w in straight_line(a, b, config, self.control_period)
-            ]
-            points = np.array([w.pose.position for w in path])
-            if _segment_distance(points, self._handle) >= self.clearance:
-                return path
-        return straight_line(start, self._home, config, self.control_period)
-
-    def preshape(self, shape: str) -> None:
-        self._hook.set_fingers(HOOK_PRESHAPE[_check_shape(shape)])
-
-    def close_hand(self, shape: str) -> None:
-        self._hook.set_fingers(float(HANDLE_GRASPS[_check_shape(shape)]["finger_angle"]))
-
-    def open_hand(self) -> None:
-        self._hook.set_fingers(HOOK_OPEN)
-
-    def home_pose(self) -> Pose:
-        return self._home
-
-    def start_at_home(self, shape: str) -> None:
-        self._hook.start_at(self._home, HOOK_PRESHAPE[_check_shape(shape)])
-
-
-class JacoRobot(SequenceRobot):
-    """The Jaco arm and hand (sim/jaco.py); home: a joint configuration; paths: `JacoPlanner`."""
-
-    name = "jaco"
-
-    def __init__(self, sim: JacoSim, home: FloatArray, planner: JacoPlanner) -> None:
-        super().__init__(sim)
-        self._jaco = sim
-        self._home = np.asarray(home, dtype=float)
-        self.planner = planner
-
-    def preshape(self, shape: str) -> None:
-        self._jaco.set_fingers(JACO_PRESHAPE[_check_shape(shape)])
-
-    def close_hand(self, shape: str) -> None:
-        self._jaco.set_fingers(JACO_GRASPS[_check_shape(shape)].finger_target)
-
-    def open_hand(self) -> None:
-        self._jaco.set_fingers(JACO_OPEN)
-
-    def set_posture(self, q: FloatArray) -> None:
-        self._jaco.set_posture(q)
-
-    def believe(self, task: TaskConfig, joint_position: float) -> None:
-        self.planner.set_object(task, joint_position)
-
-    def ready_for_manipulation(self) -> None:
-        self._jaco.set_posture(self._jaco.joint_positions())
-        super().ready_for_manipulation()
-
-    def home_pose(self) -> Pose:
-        return self.planner.tool_pose(self._home)
-
-    def start_at_home(self, shape: str) -> None:
-        self._jaco.start_at_joints(self._home, JACO_PRESHAPE[_check_shape(shape)])
-
-    def path_to(self, goal: Pose, config: MoveConfig) -> list[Waypoint]:
-        return self.planner.plan(self._jaco.joint_positions(), goal, config, self.control_period)
-
-    #: via tool points tried on the way home when the direct joint path is blocked, in the
-    #: hand's (back along its approach axis, up) [m]
-    VIAS = ((0.1, 0.15), (0.2, 0.0), (0.0, 0.25), (0.25, 0.3))
-
-    def path_home(self, config: MoveConfig) -> list[Waypoint]:
-        """A joint path home; when the object (as believed) blocks it, through a via tool
-        pose further back and up first (`VIAS`)."""
-        start = self._jaco.joint_positions()
-        period = self.control_period
-        try:
-            return self.planner.plan(start, self._home, config, period)
-        except PlanningError as exc:
-            failures = [str(exc)]
-        here = self.planner.tool_pose(start)
-        axis = here.orientation.apply([0.0, 0.0, 1.0])
-        for back, up in self.VIAS:
-            via = here.moved(-back * axis + np.array([0.0, 0.0, up]))
-            try:
-                first = self.planner.plan(start, via, config, period)
-                second = self.planner.plan(first[-1].posture, self._home, config, period)  # type: ignore[arg-type]
-            except PlanningError as exc:
-                failures.append(str(exc))
-                continue
-            return [*first, *second]
-        raise PlanningError("; ".join(failures[:2]))
 
 
 class PlanningError(CapError):
@@ -492,8 +262,13 @@ class JacoPlanner:
         return None
 
     def plan(
-        self, start: FloatArray, goal: Pose | FloatArray, move: MoveConfig, period: float
-    ) -> list[Waypoint]:
+        self,
+        start: FloatArray,
+        goal: Pose | FloatArray,
+        speed: float,
+        turn_rate: float,
+        period: float,
+    ) -> list[tuple[Pose, FloatArray]]:
         """Waypoints (one per control period) from joint angles `start` (6,) [rad] to a tool
         pose (through the nearest collision-free inverse-kinematics solution) or to joint
         angles `goal`: mink's differential IK toward the goal angles under the joint limits,
@@ -507,7 +282,8 @@ class JacoPlanner:
         failures = []
         for target in targets:
             try:
-                return self._retime(self._joint_path(start, target, period), move, period)
+                path = self._joint_path(start, target, period)
+                return self._retime(path, speed, turn_rate, period)
             except PlanningError as exc:
                 failures.append(str(exc))
         raise PlanningError("; ".join(failures))
@@ -552,25 +328,24 @@ class JacoPlanner:
         path.append(target)
         return path
 
-    def _retime(self, path: list[FloatArray], move: MoveConfig, period: float) -> list[Waypoint]:
-        """The joint path resampled so that the tool point moves at most `move.speed` and
-        turns at most `move.turn_rate` per period; each waypoint the tool pose with its
-        joint posture."""
+    def _retime(
+        self, path: list[FloatArray], speed: float, turn_rate: float, period: float
+    ) -> list[tuple[Pose, FloatArray]]:
+        """The joint path resampled so that the tool point moves at most `speed` [m/s] and
+        turns at most `turn_rate` [rad/s]; each period's tool pose with its joint angles."""
         qs = np.asarray(path)
         poses = [self.tool_pose(q) for q in qs]
-        out: list[Waypoint] = []
+        out: list[tuple[Pose, FloatArray]] = []
         for i in range(1, len(qs)):
             a, b = poses[i - 1], poses[i]
             dist = float(np.linalg.norm(b.position - a.position))
             turn = float((b.orientation * a.orientation.inv()).magnitude())
-            n = max(
-                1, math.ceil(max(dist / (move.speed * period), turn / (move.turn_rate * period)))
-            )
+            n = max(1, math.ceil(max(dist / (speed * period), turn / (turn_rate * period))))
             for k in range(1, n + 1):
                 q = qs[i - 1] + (k / n) * (qs[i] - qs[i - 1])
-                out.append(Waypoint(self.tool_pose(q), q))
+                out.append((self.tool_pose(q), q))
         if not out:
-            out.append(Waypoint(poses[0], qs[0]))
+            out.append((poses[0], qs[0]))
         return out
 
 
