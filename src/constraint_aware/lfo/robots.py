@@ -129,8 +129,10 @@ class SequenceRobot:
     def home_pose(self) -> Pose:
         raise NotImplementedError
 
-    def path_to(self, goal: Pose, config: MoveConfig) -> list[Waypoint]:
-        """Per-period setpoints from the current setpoint to `goal` (a straight line)."""
+    def path_to(self, goal: Pose, config: MoveConfig, then: Pose | None = None) -> list[Waypoint]:
+        """Per-period setpoints from the current setpoint to `goal` (a straight line);
+        `then`: the pose the hand goes on to (an arm arrives in the posture that suits it)."""
+        del then
         return straight_line(self.commanded_pose(), goal, config, self.control_period)
 
     def path_home(self, config: MoveConfig) -> list[Waypoint]:
@@ -227,13 +229,17 @@ class JacoRobot(SequenceRobot):
     def start_at_home(self, shape: str) -> None:
         self._jaco.start_at_joints(self._home, JACO_PRESHAPE[_check_shape(shape)])
 
-    def path_to(self, goal: Pose, config: MoveConfig) -> list[Waypoint]:
+    def path_to(self, goal: Pose, config: MoveConfig, then: Pose | None = None) -> list[Waypoint]:
+        """A joint path to `goal`; with `then` (the grasp after a pre-grasp), to the solution
+        for `goal` nearest the arm's roomiest posture at `then` (farthest from the joint
+        limits, as a placed grasp has it: the manipulation starts from there)."""
+        start = self._jaco.joint_positions()
+        target: Pose | FloatArray = goal
+        if then is not None:
+            target = self.planner.solve_ik(goal, self.planner.roomiest_ik(then))
         return _waypoints(
-            self.planner.plan(
-                self._jaco.joint_positions(), goal, config.speed, config.turn_rate,
-                self.control_period,
-            )
-        )  # fmt: skip
+            self.planner.plan(start, target, config.speed, config.turn_rate, self.control_period)
+        )
 
     #: via tool points tried on the way home when the direct joint path is blocked, in the
     #: hand's (back along its approach axis, up) [m]

@@ -328,7 +328,7 @@ def _run_phases(
     phase.outcome = "running"
     robot.preshape(shape)
     try:
-        path = robot.path_to(pre, cfg.reach)
+        path = robot.path_to(pre, cfg.reach, then=grasp)
     except CapError as exc:
         return _fail(robot, record, phase, "no_path", str(exc))
     m = move(phase, path, cfg.reach)

@@ -209,6 +209,25 @@ class JacoPlanner:
             raise PlanningError("no collision-free joint angles reach the goal pose")
         return min(found, key=lambda q: float(np.sum(_wrapped(q - near) ** 2)))
 
+    def roomiest_ik(self, pose: Pose) -> FloatArray:
+        """(6,) [rad] of the collision-free solutions for `pose` (everything but the handle),
+        the one farthest from the joint limits (as the arm is placed at a grasp,
+        sim.jaco.JacoSim._search_ik); PlanningError when none."""
+        best, best_margin = None, -math.inf
+        for seed in self._seeds(pose, self._seeds(pose, np.zeros(6))[1])[1:]:
+            q = self._ik_from(seed, pose)
+            if q is None or self.clearance(q, handle=False) < 0.0:
+                continue
+            margin = float(
+                np.min(np.where(self._limited, np.minimum(q - self._range[:, 0],
+                                                          self._range[:, 1] - q), math.pi))
+            )  # fmt: skip
+            if margin > best_margin:
+                best, best_margin = q, margin
+        if best is None:
+            raise PlanningError("no collision-free joint angles reach the grasp")
+        return best
+
     def ik_solutions(self, pose: Pose, near: FloatArray) -> list[FloatArray]:
         """Up to three collision-free joint solutions for `pose`, nearest to `near` first."""
         first = self.solve_ik(pose, near)
