@@ -234,12 +234,14 @@ class JacoRobot(SequenceRobot):
         for `goal` nearest the arm's roomiest posture at `then` (farthest from the joint
         limits, as a placed grasp has it: the manipulation starts from there)."""
         start = self._jaco.joint_positions()
-        target: Pose | FloatArray = goal
+        speed, turn, period = config.speed, config.turn_rate, self.control_period
         if then is not None:
-            target = self.planner.solve_ik(goal, self.planner.roomiest_ik(then))
-        return _waypoints(
-            self.planner.plan(start, target, config.speed, config.turn_rate, self.control_period)
-        )
+            try:
+                target = self.planner.solve_ik(goal, self.planner.roomiest_ik(then))
+                return _waypoints(self.planner.plan(start, target, speed, turn, period))
+            except PlanningError:
+                pass  # the nearest solution instead
+        return _waypoints(self.planner.plan(start, goal, speed, turn, period))
 
     #: via tool points tried on the way home when the direct joint path is blocked, in the
     #: hand's (back along its approach axis, up) [m]

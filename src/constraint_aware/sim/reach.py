@@ -90,7 +90,7 @@ class PlannerConfig:
     """mink's differential IK as a path planner. Units in brackets."""
 
     joint_speed: float = 0.6  # [rad/s] each arm joint
-    clearance: float = 0.02  # [m] kept between the arm and the object (as the robot sees it)
+    clearance: float = 0.01  # [m] kept between the arm and the object (as the robot sees it)
     detection: float = 0.15  # [m] collision pairs closer than this are constrained
     position_tolerance: float = 0.003  # [m] the goal pose is reached within this ...
     rotation_tolerance: float = 0.02  # [rad] ... and this
