@@ -253,8 +253,11 @@ class JacoRobot(SequenceRobot):
         start = self._jaco.joint_positions()
         period = self.control_period
         speed, turn = config.speed, config.turn_rate
+        # home is the tool's home pose, in the arm posture nearest the present one: the
+        # controller follows a tool path, its null space only loosely a joint path
+        home = self.home_pose()
         try:
-            return _waypoints(self.planner.plan(start, self._home, speed, turn, period))
+            return _waypoints(self.planner.plan(start, home, speed, turn, period))
         except PlanningError as exc:
             failures = [str(exc)]
         here = self.planner.tool_pose(start)
@@ -263,7 +266,7 @@ class JacoRobot(SequenceRobot):
             via = here.moved(-back * axis + np.array([0.0, 0.0, up]))
             try:
                 first = self.planner.plan(start, via, speed, turn, period)
-                second = self.planner.plan(first[-1][1], self._home, speed, turn, period)
+                second = self.planner.plan(first[-1][1], home, speed, turn, period)
             except PlanningError as exc:
                 failures.append(str(exc))
                 continue

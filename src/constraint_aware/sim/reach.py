@@ -125,7 +125,14 @@ class JacoPlanner:
         self._object_qpos = int(m.jnt_qposadr[m.joint(OBJECT_PREFIX + "object_joint").id])
         robot = [g for g in range(m.ngeom) if m.body(m.geom_bodyid[g]).name.startswith("jaco/")]
         scene = [g for g in range(m.ngeom) if m.geom(g).name.startswith(OBJECT_PREFIX)]
-        self._pairs = [([m.geom(g).name for g in robot], [m.geom(g).name for g in scene])]
+        # and the hand against the arm's base links: a way home can fold the arm onto itself
+        hand = [g for g in robot if "/hand/" in m.body(m.geom_bodyid[g]).name]
+        base_links = ("jaco/b_base", "jaco/b_1", "jaco/b_2")
+        links = [g for g in robot if m.body(m.geom_bodyid[g]).name in base_links]
+        self._pairs = [
+            ([m.geom(g).name for g in robot], [m.geom(g).name for g in scene]),
+            ([m.geom(g).name for g in hand], [m.geom(g).name for g in links]),
+        ]
         # the arm's links: the base stands on the floor, away from the object
         self._robot_geoms = [g for g in robot if m.body(m.geom_bodyid[g]).name != "jaco/b_base"]
         self._scene_geoms = scene
