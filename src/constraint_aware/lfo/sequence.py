@@ -86,16 +86,14 @@ class SequenceConfig:
     contact_zone: float = 0.02  # [m] contact within this of the grasp counts as arrival
     retreat: float = 0.10  # [m] back along the approach after release
     reach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.10))
-    approach: MoveConfig = field(
-        default_factory=lambda: MoveConfig(speed=0.03, position_tolerance=0.003)
-    )
+    approach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.03))
     leave: MoveConfig = field(
         default_factory=lambda: MoveConfig(speed=0.05, contact_limit=6.0, position_tolerance=0.02)
     )
     hook_home_back: float = 0.30  # [m] the hook hand's home: back along the approach ...
     hook_home_up: float = 0.10  # [m] ... and up
-    jaco_home_forward: float = 0.25  # [m] the Jaco's home tool point: from its base toward
-    jaco_home_up: float = 0.45  # [m] the object, and up
+    jaco_home_forward: float = 0.15  # [m] the Jaco's home tool point: from its base toward
+    jaco_home_up: float = 0.50  # [m] the object, and up
     recognizer: str = "cnn"
 
 
