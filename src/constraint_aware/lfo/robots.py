@@ -13,6 +13,7 @@ for the Jaco).
 from __future__ import annotations
 
 import itertools
+from abc import ABC, abstractmethod
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -44,7 +45,7 @@ def _check_shape(shape: str) -> str:
     return shape
 
 
-class SequenceRobot:
+class SequenceRobot(ABC):
     """An embodiment behind the Robot protocol plus its hand and home (module docstring)."""
 
     name = "robot"
@@ -98,14 +99,17 @@ class SequenceRobot:
         handle along the approach (sim.tasks.HANDLE_GRASPS)."""
         return float(HANDLE_GRASPS[_check_shape(shape)].get("press_depth", 0.0))
 
+    @abstractmethod
     def preshape(self, shape: str) -> None:
-        raise NotImplementedError
+        """Open the hand as the grasp of a `shape` handle needs before the approach."""
 
+    @abstractmethod
     def close_hand(self, shape: str) -> None:
-        raise NotImplementedError
+        """Close the hand by the force-exertion type of a `shape` handle."""
 
+    @abstractmethod
     def open_hand(self) -> None:
-        raise NotImplementedError
+        """Open the hand (release)."""
 
     def grasp_pose_at(self, point: FloatArray, orientation: Rotation, shape: str) -> Pose:
         """The tool pose that holds a `shape` handle whose grasp centre is `point` (3,) [m]
@@ -113,8 +117,8 @@ class SequenceRobot:
         return self._sim.grasp_pose_at(point, orientation, _check_shape(shape))  # type: ignore[attr-defined]
 
     def believe(self, task: TaskConfig, joint_position: float) -> None:
-        """What the robot believes about the object (for paths around it): `task`'s object
-        at `joint_position` [m or rad]. The hook hand's paths ignore it."""
+        """What the robot believes about the object, for its paths around it: `task`'s object
+        at `joint_position` [m or rad]."""
         del task, joint_position
 
     def ready_for_manipulation(self) -> None:
@@ -123,11 +127,13 @@ class SequenceRobot:
         self._sim._tracking_time_constant = self._sim._free_space_time_constant()
 
     # --- home and paths --------------------------------------------------------------------
+    @abstractmethod
     def start_at_home(self, shape: str) -> None:
-        raise NotImplementedError
+        """Reset the simulation with the robot at home, the hand pre-shaped for `shape`."""
 
+    @abstractmethod
     def home_pose(self) -> Pose:
-        raise NotImplementedError
+        """The tool pose at home."""
 
     def path_to(self, goal: Pose, config: MoveConfig, then: Pose | None = None) -> list[Waypoint]:
         """Per-period setpoints from the current setpoint to `goal` (a straight line);
