@@ -212,12 +212,14 @@ class JacoRobot(SequenceRobot):
 
     def preshape(self, shape: str) -> None:
         self._jaco.set_fingers(JACO_PRESHAPE[_check_shape(shape)])
+        self.planner.fingers = JACO_PRESHAPE[shape]  # paths for the hand as it is shaped
 
     def close_hand(self, shape: str) -> None:
         self._jaco.set_fingers(JACO_GRASPS[_check_shape(shape)].finger_target)
 
     def open_hand(self) -> None:
         self._jaco.set_fingers(JACO_OPEN)
+        self.planner.fingers = JACO_OPEN
 
     def set_posture(self, q: FloatArray) -> None:
         self._jaco.set_posture(q)

@@ -85,7 +85,7 @@ class SequenceConfig:
     overshoot: float = 0.012  # [m] passive closures aim this far past the surface
     contact_zone: float = 0.02  # [m] contact within this of the grasp counts as arrival
     retreat: float = 0.10  # [m] back along the approach after release
-    reach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.10))
+    reach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.06))
     approach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.03))
     leave: MoveConfig = field(
         default_factory=lambda: MoveConfig(speed=0.05, contact_limit=6.0, position_tolerance=0.02)

@@ -90,7 +90,7 @@ class PlannerConfig:
     """mink's differential IK as a path planner. Units in brackets."""
 
     joint_speed: float = 0.6  # [rad/s] each arm joint
-    clearance: float = 0.01  # [m] kept between the arm and the object (as the robot sees it)
+    clearance: float = 0.02  # [m] kept between the arm and the object (as the robot sees it)
     detection: float = 0.15  # [m] collision pairs closer than this are constrained
     position_tolerance: float = 0.003  # [m] the goal pose is reached within this ...
     rotation_tolerance: float = 0.02  # [rad] ... and this
@@ -108,6 +108,7 @@ class JacoPlanner:
     def __init__(self, base: FloatArray, config: PlannerConfig | None = None) -> None:
         self.base = np.asarray(base, dtype=float)
         self.config = config or PlannerConfig()
+        self.fingers = 0.2  # [rad] the fingers' angle in the planning model (the hand's shape)
         self._model: mujoco.MjModel | None = None
         self._joint = 0.0
 
@@ -120,6 +121,7 @@ class JacoPlanner:
         self._arm_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in ARM_JOINTS])
         self._arm_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in ARM_JOINTS])
         frozen = [m.jnt_dofadr[m.joint(j).id] for j in FINGER_JOINTS]
+        self._finger_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in FINGER_JOINTS])
         frozen.append(int(m.jnt_dofadr[m.joint(OBJECT_PREFIX + "object_joint").id]))
         self._frozen = frozen
         self._object_qpos = int(m.jnt_qposadr[m.joint(OBJECT_PREFIX + "object_joint").id])
@@ -162,6 +164,7 @@ class JacoPlanner:
         for j in range(m.njnt):
             if m.jnt_limited[j]:
                 full[m.jnt_qposadr[j]] = np.clip(0.0, *m.jnt_range[j])
+        full[self._finger_qpos] = self.fingers
         full[self._arm_qpos] = q
         full[self._object_qpos] = self._joint
         return full
