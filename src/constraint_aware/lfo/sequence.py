@@ -198,16 +198,15 @@ def station_for(
     if spec.name == "hook-hand":
         home = frame.origin - cfg.hook_home_back * frame.rotation[:, 2] + cfg.hook_home_up * up
         return Station(spec.name, camera, home_pose=Pose(home, orientation))
-    from constraint_aware.sim.reach import JacoPlanner, choose_base, facing
+    from constraint_aware.sim.reach import JacoPlanner, choose_base, facing, home_pose
 
     believed = scene_from_skill(skill).task
-    base, _ = choose_base(believed, cfg.pre_grasp)
-    toward = frame.origin - base
-    toward = unit(toward - float(toward @ up) * up)
-    home_tool = base + cfg.jaco_home_forward * toward + cfg.jaco_home_up * up
+    offsets = (cfg.jaco_home_forward, cfg.jaco_home_up)
+    base, _ = choose_base(believed, cfg.pre_grasp, offsets)
+    tool = home_pose(base, Pose(frame.origin, orientation), offsets)
     planner = JacoPlanner(base)
     planner.set_object(believed)
-    q = planner.solve_ik(Pose(home_tool, orientation), facing(base, home_tool))
+    q = planner.solve_ik(tool, facing(base, tool.position))
     return Station(spec.name, camera, base=base, home_joints=q)
 
 

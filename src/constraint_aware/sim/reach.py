@@ -415,14 +415,18 @@ def motion_poses(task: TaskConfig, grasp: Pose, fractions: tuple[float, ...]) ->
 
 
 def choose_base(
-    task: TaskConfig, pre_grasp: float = 0.10
+    task: TaskConfig,
+    pre_grasp: float = 0.10,
+    home: tuple[float, float] | None = None,
 ) -> tuple[FloatArray, tuple[float, float, float]]:
     """Where the Jaco stands for `task` (the object as the robot believes it): the kind's
     placement (sim.jaco.BASE_PLACEMENT) if from it, clear of the object (as `JacoPlanner`
     checks), the arm reaches the pre-grasp `pre_grasp` [m] back from the grasp and the grasp
-    at the start, half-way and the end of the motion (clear of everything but the handle it
-    holds); else the first of `BASE_CANDIDATES` that does. CapError when none does. Returns
-    the base (3,) [m] and the placement."""
+    at the start, half-way and the end of the motion with the object moved that far (clear
+    of everything but the handle it holds), and, given `home` (forward, up) [m] from the
+    base toward the handle, a home tool pose clear of the object closed and at the motion's
+    end; else the first of `BASE_CANDIDATES` that does. CapError when none does. Returns the
+    base (3,) [m] and the placement."""
     kind = (task.object.joint_type, task.object.handle)
     first = [BASE_PLACEMENT[kind]] if kind in BASE_PLACEMENT else []
     grasp = JacoSim(
@@ -430,15 +434,22 @@ def choose_base(
     ).grasp_pose()
     approach = grasp.orientation.apply([0.0, 0.0, 1.0])
     pre = grasp.moved(-pre_grasp * approach)
-    motion = motion_poses(task, grasp, (0.0, 0.5, 1.0))
+    fractions = (0.0, 0.5, 1.0)
+    motion = motion_poses(task, grasp, fractions)
     for placement in [*first, *BASE_CANDIDATES]:
         base = arm_base(task, placement)
         planner = JacoPlanner(base)
-        planner.set_object(task)
         try:
+            planner.set_object(task)
             q = planner.solve_ik(pre, facing(base, pre.position))
-            for pose in motion:
+            for f, pose in zip(fractions, motion, strict=True):
+                planner.set_object(task, f * task.success_progress)
                 q = planner.solve_ik(pose, q, handle=False, clearance=0.0)
+            if home is not None:
+                tool = home_pose(base, grasp, home)
+                for f in (1.0, 0.0):
+                    planner.set_object(task, f * task.success_progress)
+                    planner.solve_ik(tool, facing(base, tool.position))
         except PlanningError:
             continue
         return base, placement
@@ -446,6 +457,16 @@ def choose_base(
         f"the Jaco reaches the demonstrated motion of the {task.name} from none of "
         f"{len(BASE_CANDIDATES) + len(first)} base placements"
     )
+
+
+def home_pose(base: FloatArray, grasp: Pose, home: tuple[float, float]) -> Pose:
+    """The Jaco's home tool pose: `home` = (forward, up) [m] from `base` (3,) horizontally
+    toward the grasp and up, the hand oriented as at the grasp."""
+    up = np.array([0.0, 0.0, 1.0])
+    toward = grasp.position - base
+    toward = toward - float(toward @ up) * up
+    toward = toward / max(float(np.linalg.norm(toward)), 1e-9)
+    return Pose(base + home[0] * toward + home[1] * up, grasp.orientation)
 
 
 def facing(base: FloatArray, point: FloatArray) -> FloatArray:
