@@ -92,7 +92,7 @@ class SequenceConfig:
     )
     hook_home_back: float = 0.30  # [m] the hook hand's home: back along the approach ...
     hook_home_up: float = 0.10  # [m] ... and up
-    jaco_home_forward: float = 0.15  # [m] the Jaco's home tool point: from its base toward
+    jaco_home_forward: float = -0.10  # [m] the Jaco's home tool point: from its base toward
     jaco_home_up: float = 0.50  # [m] the object, and up
     recognizer: str = "cnn"
 
