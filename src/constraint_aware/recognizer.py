@@ -17,6 +17,8 @@ is the contact points to grasp. Here:
   closure) axis at its middle; a plate's or a knob's (passive closure) top-face centre; for a
   pole (active closure), which the hand may squeeze anywhere along, the point of its axis at
   the demonstrated height, kept `POLE_TOP_MARGIN` below its top.
+- The approach is the crop's for bars (the panel behind them) and plates (their top face)
+  and the demonstration's nominal one for poles and knobs (`NOMINAL_APPROACH`).
 - Two methods: `GeometricRecognizer` segments the surface that stands out near the
   demonstrated point and takes its centre and the normal of the surface around it;
   `ContactPointRecognizer` is a small CNN (weights `.npz` + JSON card, like the policy,
@@ -164,9 +166,18 @@ class Recognizer(Protocol):
     def recognize(self, height: FloatArray, frame: GraspFrame, shape: str) -> Recognition: ...
 
 
+#: Handle shapes whose approach comes from the demonstration, not from the crop: a pole's
+#: cylinder fixes no direction across it, and a knob's top face (a few cells) tilts the plane
+#: fitted to it by tens of degrees (benchmarks/recognizer.py: 95th percentiles of about 40 deg
+#: for both methods against 8 deg for the demonstration's).
+NOMINAL_APPROACH = ("pole", "knob")
+
+
 def _local_result(
-    point: FloatArray, approach: FloatArray, frame: GraspFrame, method: str
+    point: FloatArray, approach: FloatArray, frame: GraspFrame, method: str, shape: str
 ) -> Recognition:
+    if shape in NOMINAL_APPROACH:
+        approach = np.array([0.0, 0.0, 1.0])
     a = unit(np.asarray(approach, dtype=float))
     if a[2] <= 0.0:  # an approach must point into the object, as the nominal one does
         a = -a
@@ -191,7 +202,8 @@ class GeometricRecognizer:
       nominal one for a pole (a cylinder's surface does not fix it).
     - plate and knob: the top face is the component nearest the centre of the cells within
       `top_layer` of the highest surface within `near` of the centre; the contact point is
-      its centroid at its median height, the approach its plane's normal.
+      its centroid at its median height, the approach its plane's normal (a knob's: the
+      nominal one, `NOMINAL_APPROACH`).
     """
 
     name = "geometric"
@@ -211,7 +223,7 @@ class GeometricRecognizer:
             point, approach = self._top_face(height)
         else:
             raise UnknownNameError("handle shape", shape, HANDLE_SHAPES)
-        return _local_result(point, approach, frame, self.name)
+        return _local_result(point, approach, frame, self.name, shape)
 
     @staticmethod
     def _nearest_component(mask: BoolArray, min_cells: int = 4) -> BoolArray:
@@ -531,12 +543,15 @@ class ContactPointRecognizer:
         [m] for their handle shapes (N names of `HANDLE_SHAPES`)."""
         idx = [_shape_index(s) for s in shapes]
         x = network_input(np.asarray(heights))
-        return decode(forward(self.weights, x, np.asarray(idx)))
+        points, approaches = decode(forward(self.weights, x, np.asarray(idx)))
+        nominal = np.isin(np.asarray(shapes), NOMINAL_APPROACH)
+        approaches[nominal] = [0.0, 0.0, 1.0]
+        return points, approaches
 
     def recognize(self, height: FloatArray, frame: GraspFrame, shape: str) -> Recognition:
         check_crop(height)
         points, approaches = self.predict(height[None], [shape])
-        return _local_result(points[0], approaches[0], frame, self.name)
+        return _local_result(points[0], approaches[0], frame, self.name, shape)
 
 
 class RecognizerFileError(CapError):
