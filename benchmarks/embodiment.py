@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 
 from constraint_aware.bench.embodiment import embodiment_experiments
+from constraint_aware.bench.provenance import write_results
 
 OUT = Path(__file__).parent / "results" / "embodiment.json"
 
@@ -31,8 +32,7 @@ def main() -> None:
         variants=not args.no_variants,
         paper=not args.no_paper,
     )
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(res.to_dict(), indent=1) + "\n")
+    write_results(args.out, res.to_dict())
     print(json.dumps({"wall_time_s": res.wall_time_s, "out": str(args.out)}))
 
 

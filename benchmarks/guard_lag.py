@@ -21,7 +21,6 @@ PYTHONPATH measures that code (e.g. the executor before the lag model).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from collections import Counter
@@ -31,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench.faults import Reporting, hook_hand_time_constant
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import PAPER_OFFSETS
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -119,7 +119,7 @@ def jaco_run(policy: ConstraintAwarePolicy, tau: float, self_check: bool) -> dic
         probes.append(LagProbe(sim, tau if tau > 0 else None))
         return probes[-1]
 
-    executor = () if self_check else (("executor__self_check_steps", 0),)
+    executor = () if self_check else (("executor__self_check__steps", 0),)
     spec = RunSpec("drawer-opening", "policy", 30.0, 0, robot="jaco", overrides=executor)
     record, sim = run(spec, policy=policy, wrap=wrap)
     lag = probes[0].lag_times
@@ -172,9 +172,9 @@ def main() -> None:
         for name in ("no_prediction", "steps_x4"):
             for task, off in cases:
                 executor: tuple[tuple[str, object], ...] = (
-                    (("executor__predictive_force", False),)
+                    (("executor__guards__predictive_force", False),)
                     if name == "no_prediction"
-                    else (("executor__max_steps", 4 * task_config(task).max_steps),)
+                    else (("executor__limits__max_steps", 4 * task_config(task).max_steps),)
                 )
                 row = one_run(task, off, 0, 20000.0, share, policy, executor)
                 runs.append({"setting": f"lag_model_{name}", **row})
@@ -193,8 +193,7 @@ def main() -> None:
         "runs": runs,
         "jaco_drawer_30deg": jaco,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(out, indent=1, allow_nan=False) + "\n")
+    write_results(args.out, out)
     for setting, row in table.items():
         print(setting)
         for k, cell in row.items():

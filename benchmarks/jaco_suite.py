@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import os
 import statistics
@@ -25,7 +24,8 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-import constraint_aware.control.executor as executor_module
+import constraint_aware.control.guards as guards_module
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import suite_specs
 from constraint_aware.control.simulate import run
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -35,7 +35,7 @@ CONTROLLERS = ("policy", "classical", "projection", "fixed")
 #: name -> (robots it runs on, executor overrides, the arm-force disagreement allowance)
 SETTINGS: dict[str, tuple[tuple[str, ...], dict[str, object], float | None]] = {
     "all guards": (("hook-hand", "jaco"), {}, None),
-    "quasi-static guards off": (("jaco",), {"self_check_steps": 0}, math.inf),
+    "quasi-static guards off": (("jaco",), {"self_check__steps": 0}, math.inf),
 }
 
 
@@ -59,7 +59,7 @@ def main() -> None:
     args = parser.parse_args()
     controllers = args.controllers.split(",")
     policy = ConstraintAwarePolicy.load("default")
-    shipped = executor_module.ARM_FORCE_DISAGREEMENT_STEPS
+    shipped = guards_module.ARM_FORCE_DISAGREEMENT_STEPS
     out: dict[str, Any] = {
         "seeds": args.seeds,
         "policy": "default",
@@ -68,7 +68,7 @@ def main() -> None:
     }
     start = time.perf_counter()
     for setting, (robots, overrides, disagreement) in SETTINGS.items():
-        executor_module.ARM_FORCE_DISAGREEMENT_STEPS = (
+        guards_module.ARM_FORCE_DISAGREEMENT_STEPS = (
             shipped if disagreement is None else disagreement
         )
         for robot in robots:
@@ -82,11 +82,10 @@ def main() -> None:
                 f"{task} / {controller}": cell(rows) for (task, controller), rows in groups.items()
             }
             print(setting, robot, f"{time.perf_counter() - start:.0f} s", flush=True)
-    executor_module.ARM_FORCE_DISAGREEMENT_STEPS = shipped
+    guards_module.ARM_FORCE_DISAGREEMENT_STEPS = shipped
     out["wall_time_s"] = time.perf_counter() - start
     out["load_average_1min_at_end"] = os.getloadavg()[0]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(out, indent=1) + "\n")
+    write_results(args.out, out)
 
 
 if __name__ == "__main__":

@@ -1,6 +1,6 @@
-"""Learning-from-Observation accuracy against synthetic ground truth. Prints JSON.
+"""Learning-from-Observation accuracy against synthetic ground truth. Writes and prints JSON.
 
-    python benchmarks/lfo_accuracy.py [--demos 100]
+    python benchmarks/lfo_accuracy.py [--demos 100] [--out benchmarks/results/lfo_accuracy.json]
 
 Per tracking-noise level and kind (drawer, door, handle): workplane normal error [deg]
 (the normal as an axis: sign ignored for lines), radius error [%] over arcs of at least 45 deg,
@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 
 import numpy as np
 
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.lfo.infer import (
     InferenceError,
     angle_between_deg,
@@ -75,6 +77,9 @@ def evaluate(kind: str, noise: float, n: int, seed: int, arc: tuple[float, float
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--demos", type=int, default=100)
+    parser.add_argument(
+        "--out", type=Path, default=Path(__file__).parent / "results" / "lfo_accuracy.json"
+    )
     args = parser.parse_args()
     out: dict[str, object] = {"noise_levels_m": {}}
     levels = out["noise_levels_m"]
@@ -85,6 +90,7 @@ def main() -> None:
     out["partial_arcs_20_45_deg_at_5mm"] = {
         k: evaluate(k, 0.005, args.demos, 999, arc=(20.0, 45.0)) for k in ("door", "handle")
     }
+    write_results(args.out, out)
     print(json.dumps(out, indent=1))
 
 

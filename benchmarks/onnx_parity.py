@@ -24,6 +24,7 @@ import numpy as np
 import onnxruntime
 
 from constraint_aware import policy as policy_module
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.export.onnx import (
     INPUT_NAME,
     OUTPUT_NAME,
@@ -77,7 +78,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n", type=int, default=10_000)
     parser.add_argument("--repeats", type=int, default=7)
-    parser.add_argument("--out", default="benchmarks/results/onnx_parity.json")
+    parser.add_argument(
+        "--out", type=Path, default=Path(__file__).parent / "results" / "onnx_parity.json"
+    )
     args = parser.parse_args()
     # Every packaged policy by name where this version names them, else the shipped one.
     names = list(getattr(policy_module, "POLICY_NAMES", [None]))
@@ -86,9 +89,7 @@ def main() -> None:
         for name in names:
             policy = ConstraintAwarePolicy.load(name)
             result[name or "shipped"] = measure(policy, args.n, args.repeats, Path(tmp))
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2) + "\n")
+    write_results(args.out, result)
     print(json.dumps(result, indent=2))
 
 

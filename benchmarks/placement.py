@@ -27,6 +27,7 @@ import time
 from pathlib import Path
 
 from constraint_aware.bench.placement import FULL_PER_KIND, run_placement
+from constraint_aware.bench.provenance import write_results
 
 HERE = Path(__file__).parent
 
@@ -94,9 +95,7 @@ def main() -> None:
     result = run_placement(args.per_kind, seed=args.seed, lid_without_stay=True)
     data = result.to_dict()
     data["wall_time_s"] = time.perf_counter() - start
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(data, indent=1) + "\n")
+    out = write_results(args.out, data)
     print(
         "| kind | controller | success | refused | peak F median / max [N] | normal err p95 "
         "[deg] | direction err p95 [deg] | radius err p95 [%] | goal err p95 [cm or deg] | "

@@ -1,9 +1,9 @@
-"""Throughput of the training env backends and latency of one policy decision. Prints JSON.
+"""Throughput of the training env backends and latency of one policy decision. Writes JSON.
 
 The paper's policy is compared with SB3 (same 6-input layout); the default policy's
 `update_direction` (its session, with the step force) is timed beside it.
 
-    python benchmarks/policy_speed.py [--repeats 7]
+    python benchmarks/policy_speed.py [--repeats 7] [--out benchmarks/results/policy_speed.json]
 
 Each figure is the median over `repeats` measurements in this one run; the ratio compares the
 numpy policy with Stable-Baselines3's `predict` on the same weights (if SB3 is installed).
@@ -16,9 +16,11 @@ import json
 import statistics
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.training.batch import SingleSystemBatch
 from constraint_aware.training.config import EnvConfig, resistance_config
@@ -100,6 +102,9 @@ def act_latency_us(repeats: int, calls: int = 2000) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument(
+        "--out", type=Path, default=Path(__file__).parent / "results" / "policy_speed.json"
+    )
     args = parser.parse_args()
     result = {
         "analytic_env_steps_per_s_n6000": env_steps_per_s("analytic", 6000, 20, args.repeats),
@@ -110,6 +115,7 @@ def main() -> None:
         **act_latency_us(args.repeats),
         "repeats": args.repeats,
     }
+    write_results(args.out, result)
     print(json.dumps(result, indent=2))
 
 

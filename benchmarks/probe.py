@@ -2,6 +2,7 @@
 convention faults, and what its measured stiffness does to the policy's runs.
 
     python benchmarks/probe.py [--seeds 20] [--workers 2] [--out benchmarks/results/probe.json]
+        [--runs FILE]
 
 Part 1, verdicts: every task, seeds 0-4 with the suite's randomized objects, on the hook hand
 and the Jaco, healthy and with three faults: the wrench sign flipped, the sensor frame turned
@@ -18,7 +19,8 @@ held still for 12 s, no probe (the reading and the pole's travel per second); an
 object and then running from that same grasp, without a re-grasp (drawer and pole suites, hook
 hand), which is why `RunSpec.probe` probes a twin; and the force a grasp meets against the
 push's size, 1.5-8 mm (play in the grasp, a force bias in the arm). Runs are independent,
-spread over `--workers` processes.
+spread over `--workers` processes. The JSON (with provenance) holds the verdicts, the cells and
+the diagnostics; `--runs FILE` also writes part 2's runs one by one (not committed: ~300 KB).
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench.faults import FaultyRobot, Reporting
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.simulate import RunSpec, probe, run
 from constraint_aware.sim.tasks import TASKS
@@ -236,6 +239,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=20, help="suite seeds per task (part 2)")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    parser.add_argument("--runs", type=Path, help="also write part 2's runs here (JSON)")
     args = parser.parse_args()
     start = time.perf_counter()
     jobs = [(r, t, f, s) for r in ROBOTS for t in TASKS for f in FAULTS for s in VERDICT_SEEDS]
@@ -303,11 +307,12 @@ def main() -> None:
             "force_by_push_size": by_amplitude,
         },
         "verdicts": verdicts,
-        "runs": runs,
+        "runs_file": str(args.runs) if args.runs else None,
         "wall_time_s": time.perf_counter() - start,
     }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(out, indent=1) + "\n")
+    if args.runs:
+        write_results(args.runs, {"runs": runs})
+    write_results(args.out, out)
     print(json.dumps(counts, indent=1))
     print(json.dumps(stiffness, indent=1))
     print(json.dumps(play, indent=1))

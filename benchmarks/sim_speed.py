@@ -27,14 +27,14 @@ import statistics
 import time
 from pathlib import Path
 
-import constraint_aware.control.executor as executor_module
+import constraint_aware.control.guards as guards_module
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
 from constraint_aware.sim.tasks import TASKS
 
 STEPS = 30
 DEFAULT_OUT = Path(__file__).parent / "results" / "sim_speed.json"
-QUASI_STATIC_GUARDS_OFF: dict[str, object] = {"self_check_steps": 0}  # and the arm-force one
+QUASI_STATIC_GUARDS_OFF: dict[str, object] = {"self_check__steps": 0}  # and the arm-force one
 
 
 def episode(task: str, robot: str) -> dict[str, float]:
@@ -83,7 +83,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.repeats < 1:
         parser.error("--repeats must be >= 1")
-    executor_module.ARM_FORCE_DISAGREEMENT_STEPS = math.inf
+    guards_module.ARM_FORCE_DISAGREEMENT_STEPS = math.inf
     robots = args.robots.split(",")
     out: dict[str, object] = {
         "load_average_1min_at_start": os.getloadavg()[0],

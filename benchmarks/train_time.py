@@ -1,21 +1,21 @@
-"""Wall time of `cap train` until the evaluation mean angle is <= a target, new vs old preset.
+"""Wall time of `cap train` until the evaluation mean angle is <= a target, against a baseline.
 
     python benchmarks/train_time.py [--preset default] [--target 3.0] [--seeds 0 1 2]
                                     [--target-evaluation training|standard]
                                     [--no-baseline] [--baseline-seeds 0]
-                                    [--baseline-threads 1] [--json PATH]
+                                    [--baseline-threads 1] [--out PATH]
 
 Runs the real command line in a subprocess per seed, on however many cores torch is given
 (the preset's `torch_threads`). `--target-evaluation standard` applies the target to the
-paper's resistance-free test set (the issue-9 bar of 2.2 deg) instead of the periodic
+paper's resistance-free test set (the shipped policy's bar: 2.2 deg) instead of the periodic
 evaluation in the training environment. For each seed it runs the preset and then, unless
---no-baseline, the default preset as it was at stop 15 (`BASELINE_PRESET` +
-`BASELINE_FLAGS`: 2x256 net, 10 epochs, constant learning rate, k uniform in 1000-3000 N/m),
-so the two share the machine's load and their ratio means
-something on a shared machine. Prints JSON with each run, the medians over seeds, the median
-of the per-seed ratios new/old, and the machine's load average before and after (a load
-above the core count means the times are not the training's alone). Each run also records the
-standard evaluation (no resistance, 10,000 episodes) of the policy it stopped with.
+--no-baseline, the baseline (`BASELINE_PRESET` + `BASELINE_FLAGS`: a 2x256 net, 10 epochs,
+a constant learning rate, k uniform in 1000-3000 N/m), so the two share the machine's load and
+their ratio means something on a shared machine. Writes JSON (default
+benchmarks/results/train_time.json, with provenance) with each run, the medians over seeds,
+the median of the per-seed ratios new/old, and the machine's load average before and after (a
+load above the core count means the times are not the training's alone). Each run also
+records the standard evaluation (no resistance, 10,000 episodes) of the policy it stopped with.
 """
 
 from __future__ import annotations
@@ -31,9 +31,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-#: The `default` preset of stop 15 (commit 1a89c01, 81.5 s to 3 deg on a quiet machine):
-#: today's `fast` preset (2x256, 10 epochs, constant learning rate 1e-3, 1.2 M steps) in the
-#: stop-15 training environment (resistance, magnitude observation, k uniform in 1000-3000 N/m).
+from constraint_aware.bench.provenance import write_results
+
+#: The baseline: the `default` preset before its smaller net (commit 1a89c01; 81.5 s to 3 deg on
+#: a quiet machine): the `fast` preset (2x256, 10 epochs, constant learning rate 1e-3, 1.2 M
+#: steps) in that preset's training environment (resistance, magnitude observation, k uniform
+#: in 1000-3000 N/m).
 BASELINE_PRESET = "fast"
 BASELINE_FLAGS = (
     "--env.observation", "magnitude", "--env.resistance-free-share", "0.5",
@@ -41,7 +44,7 @@ BASELINE_FLAGS = (
     "--env.damping", "0", "0.1", "--env.inertia", "0", "0.1", "--env.preload", "0", "0.3",
     "--env.step-force-unknown-share", "0.25",
 )  # fmt: skip
-#: torch threads of the stop-15 preset (its 81.5 s were measured with 2 on a quiet machine).
+#: torch threads of the baseline (its 81.5 s were measured with 2 on a quiet machine).
 BASELINE_THREADS = 2
 
 
@@ -94,7 +97,7 @@ def main() -> None:
     )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--preset", default="default")
-    parser.add_argument("--no-baseline", action="store_true", help="skip the stop-15 preset")
+    parser.add_argument("--no-baseline", action="store_true", help="skip the baseline")
     parser.add_argument(
         "--baseline-seeds", type=int, nargs="*", help="seeds of the baseline (default: --seeds)"
     )
@@ -104,7 +107,9 @@ def main() -> None:
         default=BASELINE_THREADS,
         help="torch threads of the baseline (on a busy machine 1: a second thread stalls)",
     )
-    parser.add_argument("--json", help="also write the result here")
+    parser.add_argument(
+        "--out", type=Path, default=Path(__file__).parent / "results" / "train_time.json"
+    )
     args = parser.parse_args()
     load_before = os.getloadavg()
     new: list[dict[str, Any]] = []
@@ -137,10 +142,8 @@ def main() -> None:
         result["baseline"] = {"preset": BASELINE_PRESET, "flags": list(baseline), **summary(old)}
         result["per_seed_ratio_new_over_old"] = ratios
         result["median_ratio_new_over_old"] = statistics.median(ratios) if ratios else None
-    text = json.dumps(result, indent=2)
-    print(text)
-    if args.json:
-        Path(args.json).write_text(text + "\n")
+    write_results(args.out, result)
+    print(json.dumps(result, indent=2))
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Tune the classical baseline's gains on drawer-opening only (grid search). Prints JSON.
+"""Tune the classical baseline's gains on drawer-opening only (grid search). Writes JSON.
 
     python benchmarks/tune_classical.py [--out benchmarks/results/classical_tuning.json]
 
@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import run_many
 from constraint_aware.control.simulate import RunSpec
 
@@ -32,7 +33,9 @@ OFFSETS = (30.0, -30.0)
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="benchmarks/results/classical_tuning.json")
+    parser.add_argument(
+        "--out", type=Path, default=Path(__file__).parent / "results" / "classical_tuning.json"
+    )
     args = parser.parse_args()
     combos = [dict(zip(GRID, values, strict=True)) for values in itertools.product(*GRID.values())]
     specs = [
@@ -73,8 +76,7 @@ def main() -> None:
         "ranking": rows,
         "wall_s": time.perf_counter() - start,
     }
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text(json.dumps(out, indent=1) + "\n")
+    write_results(args.out, out)
     print(json.dumps({"best": rows[0], "top5": rows[:5], "wall_s": out["wall_s"]}, indent=1))
 
 

@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+from constraint_aware.envs import SINGLE_SYSTEM_ID, register_envs
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.geometry import angle_deg, rotate_about
 from constraint_aware.training.batch import SingleSystemBatch
 from constraint_aware.training.config import EnvConfig
-from constraint_aware.training.env import ENV_ID, SingleSystemEnv, register
+from constraint_aware.training.env import SingleSystemEnv
 from constraint_aware.training.physics import MujocoConstraintForce, analytic_constraint_force
 
 
@@ -80,8 +81,8 @@ def test_same_seed_same_rollout(backend: str) -> None:
 
 
 def test_gym_registration_and_episode_end() -> None:
-    register()
-    env = gym.make(ENV_ID)
+    register_envs()
+    env = gym.make(SINGLE_SYSTEM_ID)
     env.reset(seed=0)
     for t in range(5):
         _, reward, terminated, truncated, info = env.step(env.action_space.sample())

@@ -200,8 +200,10 @@ def test_eval_writes_json(tmp_path: Path) -> None:
     out = cap("eval", "--episodes", "500", "--json", str(tmp_path / "e.json"))
     assert out.returncode == 0, out.stderr
     data = json.loads((tmp_path / "e.json").read_text())
-    assert set(data) == {"noop", "projection", "mu_agnostic", "oracle", "policy"}
-    assert data["policy"]["episodes"] == 500
+    assert set(data) == {"training_environment", "standard_evaluation", "card_standard_evaluation"}
+    for where in ("training_environment", "standard_evaluation"):
+        assert set(data[where]) == {"noop", "projection", "mu_agnostic", "oracle", "policy"}
+        assert data[where]["policy"]["episodes"] == 500
 
 
 def test_eval_missing_policy_is_a_clear_error(tmp_path: Path) -> None:
@@ -221,7 +223,10 @@ def test_eval_policy_flag_evaluates_that_policy(tmp_path: Path) -> None:
     paper = ConstraintAwarePolicy.load("paper")
     config = EnvConfig.from_dict(paper.card.get("env_config", {}))
     expected = evaluate(lambda obs, _f: paper.act_batch(obs), config, episodes=300, seed=12345)
-    assert json.loads((tmp_path / "e.json").read_text())["policy"] == strict(expected.to_dict())
+    data = json.loads((tmp_path / "e.json").read_text())
+    assert data["training_environment"]["policy"] == strict(expected.to_dict())
+    # the paper's policy was trained in the standard environment: one evaluation is both
+    assert data["standard_evaluation"] == data["training_environment"]
     out = cap("eval", "--policy", "nope")
     assert out.returncode == 2 and "valid names: default, paper" in out.stderr
 
@@ -239,7 +244,8 @@ def test_run_policy_flag_drives_the_run_with_that_policy(tmp_path: Path) -> None
 def test_train_tiny_budget(tmp_path: Path) -> None:
     pytest.importorskip("stable_baselines3")
     out = cap(
-        "train", "--steps", "12000", "--out", str(tmp_path / "run"), "--quiet",
+        "train", "--steps", "1000", "--n-envs", "200", "--batch-size", "500",
+        "--out", str(tmp_path / "run"), "--quiet", "--torch-threads", "1",
         "--eval-episodes", "300", "--final-episodes", "300", "--env.friction", "0", "0.1",
         "--json", str(tmp_path / "t.json"),
     )  # fmt: skip
@@ -367,7 +373,7 @@ def test_bench_force_flag_reaches_run_bench(
 
 def test_run_set_reaches_task_and_executor_fields(tmp_path: Path) -> None:
     out = cap(
-        "run", "drawer-opening", "--set", "force_limit=5", "--set", "executor.max_steps=3",
+        "run", "drawer-opening", "--set", "force_limit=5", "--set", "executor.limits.max_steps=3",
         "--json", str(tmp_path / "r.json"),
     )  # fmt: skip
     assert out.returncode == 1, out.stderr  # a 5 N limit stops the run
@@ -375,7 +381,7 @@ def test_run_set_reaches_task_and_executor_fields(tmp_path: Path) -> None:
     assert data["outcome"] == "force_limit" and data["label"]["force_limit_N"] == 5
     out = cap("run", "drawer-opening", "--set", "object.nosuch=1")
     assert out.returncode == 2 and "object.mass" in out.stderr  # lists the valid keys
-    out = cap("run", "drawer-opening", "--set", "executor.max_steps=2", "--offset", "0")
+    out = cap("run", "drawer-opening", "--set", "executor.limits.max_steps=2", "--offset", "0")
     assert out.returncode == 1 and "timeout" in out.stdout
 
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-import constraint_aware.control.executor as executor_module
+import constraint_aware.control.guards as guards_module
 from constraint_aware.bench.faults import FaultyRobot
 from constraint_aware.bench.sweep import suite_specs
 from constraint_aware.control.controllers import DirectionController
@@ -141,8 +141,8 @@ def test_grasp_holds_under_a_scripted_pull(
     # the subject is the grasp: the executor's start-of-run self-check and arm-deflection stop
     # assume a quasi-static arm (F = k x deflection), which the lagging Jaco is not (README,
     # "Second embodiment"; its lag is `tracking_time_constant`)
-    monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
-    cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
+    monkeypatch.setattr(guards_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
+    cfg = executor_config(task).with_overrides(self_check__steps=0)
     record = Executor(sim, true_direction(sim), cfg, monitor=sim).run(sim.admissible_direction())
     assert record.outcome == "success", record.reason
     assert record.slip_m < 0.015
@@ -195,9 +195,9 @@ def test_paper_tasks_with_the_policy_on_the_arm(
     spec = RunSpec(task, robot="jaco", controller="policy", offset_deg=PAPER_OFFSETS[task])
     # without the executor's two guards that assume a quasi-static arm (F = k x deflection):
     # the start-of-run self-check and the arm-deflection stop (with them: the test below)
-    monkeypatch.setattr(executor_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
+    monkeypatch.setattr(guards_module, "ARM_FORCE_DISAGREEMENT_STEPS", math.inf)
     policy = ConstraintAwarePolicy.load(policy_name)
-    record, sim = run(spec, policy=policy, executor_overrides={"self_check_steps": 0})
+    record, sim = run(spec, policy=policy, executor_overrides={"self_check__steps": 0})
     assert record.outcome == "success", record.reason
     assert sim.translational_stiffness == 1000.0
 
@@ -229,21 +229,20 @@ def test_the_self_check_lets_healthy_plate_runs_on_the_arm_through() -> None:
 
 @pytest.mark.parametrize("fault", ["flipped_sign", "rotated_90"])
 def test_the_self_check_still_stops_a_wrong_convention_on_the_arms_plate(fault: str) -> None:
-    hold = ExecutorConfig().offset_samples - 1
+    hold = ExecutorConfig().timing.offset_samples - 1
     spec = RunSpec("plate-sliding", robot="jaco", controller="policy", offset_deg=-30.0, seed=1)
     record, _ = run(spec, wrap=lambda sim: FaultyRobot(sim, fault, hold))
-    # stopped within the self-check's moves: by it, by the force limit, or (the rotated frame
-    # since stop 29: its first reading, scaled by the start's travel scaling, turns d faster
-    # off the path) by the arm's deflection disagreeing with the sensor ("or the sensor reads
-    # low"), at step 3 and 11.3 N where the self-check stopped it at step 5 and 13.3 N
+    # stopped within the self-check's moves: by it, by the force limit, or (the rotated frame:
+    # its first reading, scaled by the start's travel scaling, turns d faster off the path) by
+    # the arm's deflection disagreeing with the sensor ("or the sensor reads low")
     assert record.outcome in ("sensor_convention", "force_limit", "not_following"), record.reason
-    assert record.n_steps <= ExecutorConfig().self_check_steps
+    assert record.n_steps <= ExecutorConfig().self_check.steps
 
 
 def test_robot_specs_and_variants() -> None:
     assert set(EMBODIMENTS) == {"hook-hand", "jaco"}
-    spec = parse_robot("jaco:stiffness=5000,period=0.05")
-    assert (spec.name, spec.stiffness, spec.period) == ("jaco", 5000.0, 0.05)
+    spec = parse_robot("jaco:stiffness=2000,period=0.1")
+    assert (spec.name, spec.stiffness, spec.period) == ("jaco", 2000.0, 0.1)
     sim = make_embodiment("hook-hand:stiffness=4000,period=0.2", task_config("drawer-opening"))
     assert sim.translational_stiffness == 4000.0 and sim.control_period == 0.2
     with pytest.raises(UnknownNameError, match="hook-hand, jaco"):
@@ -281,8 +280,11 @@ def test_embodiment_experiment_types_and_report_table() -> None:
     assert "| plate-sliding | policy |" in text
 
 
-@pytest.mark.parametrize("robot", ["hook-hand", "jaco"])
-@pytest.mark.parametrize("period", [0.02, 0.05, 0.1, 0.2])
+@pytest.mark.parametrize(
+    ("robot", "period"),
+    [("hook-hand", 0.02), ("hook-hand", 0.05), ("jaco", 0.06), ("hook-hand", 0.1), ("jaco", 0.1),
+     ("hook-hand", 0.2), ("jaco", 0.2)],
+)  # fmt: skip
 def test_a_control_period_lasts_exactly_its_nominal_time(robot: str, period: float) -> None:
     sim = make_embodiment(f"{robot}:period={period}", task_config("drawer-opening"))
     sim.reset()
@@ -302,7 +304,7 @@ def test_a_control_period_lasts_exactly_its_nominal_time(robot: str, period: flo
 def test_a_period_that_is_not_a_whole_number_of_steps_is_refused(period: float) -> None:
     if period >= 0.02:  # below, the spec's range check refuses it first
         with pytest.raises(InvalidInputError, match="control_period"):
-            parse_robot(f"jaco:period={period}")
+            parse_robot(f"hook-hand:period={period}")
     with pytest.raises(InvalidInputError, match="control_period"):
         JacoSim(task_config("drawer-opening"), control_period=period)
 
@@ -347,7 +349,7 @@ def test_tracking_time_constant_matches_a_measured_step_response(robot: str) -> 
 
 def test_tracking_time_constant_is_fixed_per_episode_and_follows_the_gains() -> None:
     taus = []
-    for stiffness in (1000, 5000):
+    for stiffness in (1000, 4000):
         sim = make_embodiment(f"jaco:stiffness={stiffness}", task_config("drawer-opening"))
         sim.reset()
         before = sim.data.time
@@ -358,7 +360,7 @@ def test_tracking_time_constant_is_fixed_per_episode_and_follows_the_gains() -> 
     assert 0.05 < taus[1] < taus[0] < 1.0
 
 
-@pytest.mark.parametrize("stiffness", [500, 100000])
+@pytest.mark.parametrize("stiffness", [700, 4000])
 def test_the_arm_rests_stably_at_the_ends_of_the_stiffness_range(stiffness: int) -> None:
     # the OSC runs at 250 Hz (OscConfig.control_substeps): the stiffest variant must not ring
     sim = make_embodiment(f"jaco:stiffness={stiffness}", task_config("drawer-opening"))

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import logging
 import math
 import subprocess
 import sys
@@ -22,11 +24,19 @@ from constraint_aware.control.controllers import (
     ProjectionController,
 )
 from constraint_aware.control.executor import Executor, ExecutorConfig
-from constraint_aware.control.record import RunRecord
+from constraint_aware.control.executor_config import (
+    GoalConfig,
+    GuardsConfig,
+    LimitsConfig,
+    RobotOverrides,
+    TorquePolicyConfig,
+)
+from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord
 from constraint_aware.control.robot import reported_stiffness
+from constraint_aware.control.run_inputs import INPUT_NAMES
 from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import MIN_THRESHOLD
-from constraint_aware.errors import InvalidInputError
+from constraint_aware.errors import ConfigError, InvalidInputError
 from constraint_aware.geometry import angle_deg, rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.spatial import Pose, Wrench
@@ -34,7 +44,7 @@ from constraint_aware.spatial import Pose, Wrench
 U = np.array([1.0, 0.0, 0.0])
 # the executor holds for offset_samples periods to sample F_d; the last sample is also the
 # first step's reading, so the first move is the command after HOLD hold commands
-HOLD = ExecutorConfig().offset_samples - 1
+HOLD = ExecutorConfig().timing.offset_samples - 1
 WEIGHT = np.array([0.0, 0.0, -6.0])  # the hand's own weight in the raw reading
 
 
@@ -150,7 +160,7 @@ def test_offset_is_subtracted_before_the_controller_sees_the_force() -> None:
             return inp.direction
 
     robot = FakeGuide()
-    Executor(robot, Spy(), ExecutorConfig(max_steps=3)).run(U)
+    Executor(robot, Spy(), ExecutorConfig(limits=LimitsConfig(max_steps=3))).run(U)
     assert np.allclose(seen[0].force, 0.0)  # the weight is in F_d, not in F
     assert np.allclose(seen[1].force, 0.0)  # aligned: no constraint force either
 
@@ -173,7 +183,7 @@ def test_nan_sensor_stops_without_raising() -> None:
 
 def test_lost_contact_stops_after_the_configured_steps() -> None:
     robot = FakeGuide(lose_contact_after=HOLD + 2)
-    cfg = ExecutorConfig(lost_contact_steps=4)
+    cfg = ExecutorConfig(guards=GuardsConfig(lost_contact_steps=4))
     rec = Executor(robot, FixedDirection(), cfg, monitor=robot).run(U)
     assert rec.outcome == "contact_lost"
     assert rec.steps[-1].step == 2 + 4  # contact gone from step 3; the 4th such step stops
@@ -185,7 +195,7 @@ def test_commands_stay_in_the_workplane() -> None:
             return np.array([1.0, 0.0, 1.0]) / math.sqrt(2)
 
     robot = FakeGuide()
-    Executor(robot, Upward(), ExecutorConfig(max_steps=4)).run(U)
+    Executor(robot, Upward(), ExecutorConfig(limits=LimitsConfig(max_steps=4))).run(U)
     for pose in robot.commands:
         assert abs(pose.position[2]) < 1e-12
     step = robot.commands[HOLD + 1].position - robot.commands[HOLD].position
@@ -198,7 +208,7 @@ def test_revolute_hand_turns_with_the_direction() -> None:
             return rotate_about(inp.direction, np.array([0.0, 0.0, 1.0]), math.radians(10))
 
     robot = FakeGuide()
-    cfg = ExecutorConfig(constraint_type="revolute", max_steps=3)
+    cfg = ExecutorConfig(constraint_type="revolute", limits=LimitsConfig(max_steps=3))
     Executor(robot, TurnTen(), cfg).run(U)
     rotvec = robot.commands[HOLD].orientation.as_rotvec()
     np.testing.assert_allclose(rotvec, [0.0, 0.0, math.radians(10)], atol=1e-12)
@@ -209,7 +219,10 @@ def test_revolute_hand_turns_with_the_direction() -> None:
 def test_torque_policy_rotates_by_v_over_r_then_adapts() -> None:
     robot = FakeGuide(torque=np.array([0.0, 0.0, 0.5]))  # the object drags the hand round
     cfg = ExecutorConfig(
-        constraint_type="revolute", max_steps=3, torque_policy=True, rotation_radius=0.1
+        constraint_type="revolute",
+        rotation_radius=0.1,
+        limits=LimitsConfig(max_steps=3),
+        torque_policy=TorquePolicyConfig(enabled=True),
     )
     rec = Executor(robot, FixedDirection(), cfg).run(U)
     w0 = 0.01 / 0.1
@@ -234,14 +247,14 @@ def test_bad_config_is_rejected_with_valid_names() -> None:
     with pytest.raises(InvalidInputError, match="prismatic, revolute"):
         ExecutorConfig(constraint_type="spherical")  # type: ignore[arg-type]
     with pytest.raises(InvalidInputError, match="rotation_radius"):
-        ExecutorConfig(constraint_type="revolute", torque_policy=True)
+        ExecutorConfig(constraint_type="revolute", torque_policy=TorquePolicyConfig(enabled=True))
 
 
 def test_a_configured_stiffness_replaces_the_report_and_is_noted() -> None:
     with pytest.raises(InvalidInputError, match=r"stiffness.*\(0, 1e\+06\] \[N/m\]"):
-        ExecutorConfig(stiffness=-5.0)
+        ExecutorConfig(robot=RobotOverrides(stiffness=-5.0))
     with pytest.raises(InvalidInputError, match="stiffness"):
-        ExecutorConfig(stiffness=2e6)
+        ExecutorConfig(robot=RobotOverrides(stiffness=2e6))
     seen: list[float | None] = []
 
     class Recording(FixedDirection):
@@ -249,7 +262,7 @@ def test_a_configured_stiffness_replaces_the_report_and_is_noted() -> None:
             seen.append(inp.step_force)
             return super().next_direction(inp)
 
-    cfg = ExecutorConfig(max_steps=3, stiffness=2500.0)
+    cfg = ExecutorConfig(limits=LimitsConfig(max_steps=3), robot=RobotOverrides(stiffness=2500.0))
     rec = Executor(Stiff(), Recording(), cfg).run(d0(0))
     assert seen and all(f == pytest.approx(25.0) for f in seen)  # 2500 N/m x 1 cm
     assert "stiffness 2500 N/m from the configuration (robot reports 2000 N/m)" in rec.notes
@@ -257,9 +270,9 @@ def test_a_configured_stiffness_replaces_the_report_and_is_noted() -> None:
 
 def test_a_configured_grasp_play_gives_the_controller_the_force_it_hides() -> None:
     with pytest.raises(InvalidInputError, match=r"grasp_play.*\[0, 0\.005\] \[m\]"):
-        ExecutorConfig(grasp_play=0.006)  # more than half a 1 cm step
+        ExecutorConfig(robot=RobotOverrides(grasp_play=0.006))  # more than half a 1 cm step
     with pytest.raises(InvalidInputError, match="grasp_play"):
-        ExecutorConfig(grasp_play=math.nan)
+        ExecutorConfig(robot=RobotOverrides(grasp_play=math.nan))
     seen: list[float | None] = []
 
     class Recording(FixedDirection):
@@ -267,11 +280,15 @@ def test_a_configured_grasp_play_gives_the_controller_the_force_it_hides() -> No
             seen.append(inp.play_force)
             return super().next_direction(inp)
 
-    rec = Executor(Stiff(), Recording(), ExecutorConfig(max_steps=3, grasp_play=0.0015)).run(d0(0))
+    rec = Executor(
+        Stiff(),
+        Recording(),
+        ExecutorConfig(limits=LimitsConfig(max_steps=3), robot=RobotOverrides(grasp_play=0.0015)),
+    ).run(d0(0))
     assert seen and all(f == pytest.approx(3.0) for f in seen)  # 2000 N/m x 1.5 mm
     assert "grasp play 1.50 mm from the configuration" in rec.notes
     seen.clear()
-    Executor(Stiff(), Recording(), ExecutorConfig(max_steps=3)).run(d0(0))
+    Executor(Stiff(), Recording(), ExecutorConfig(limits=LimitsConfig(max_steps=3))).run(d0(0))
     assert seen and all(f is None for f in seen)  # no play configured: nothing to add
 
 
@@ -359,7 +376,7 @@ def test_goal_travel_stops_a_robot_without_monitor_or_optional_members(
     robot = required_only(FakeGuide())  # only the required members
     # without contact sensing the executor judges contact from |F|, which on this frictionless
     # fake is 0 once aligned: switch that judgement off
-    cfg = ExecutorConfig(goal_travel=0.1, lost_contact_force=0.0)
+    cfg = ExecutorConfig(goal=GoalConfig(travel=0.1), guards=GuardsConfig(lost_contact_force=0.0))
     rec = Executor(robot, ProjectionController(), cfg).run(d0(30))
     assert rec.outcome == "success" and rec.reason.startswith("goal: travel")
     assert rec.goal is not None and rec.goal["reached"] >= 0.1
@@ -367,13 +384,27 @@ def test_goal_travel_stops_a_robot_without_monitor_or_optional_members(
     json.dumps(rec.to_dict(), allow_nan=False)
 
 
+def test_without_contact_sensing_contact_is_judged_from_the_force(
+    required_only: type[Any],
+) -> None:
+    """|F| above guards.contact_force once (the 30 deg error's first reading), then below
+    guards.lost_contact_force (aligned on the frictionless guide) for lost_contact_steps."""
+    robot = required_only(FakeGuide())
+    rec = Executor(robot, ProjectionController(), ExecutorConfig()).run(d0(30))
+    assert rec.outcome == "contact_lost" and rec.reason == "no hand-object contact for 5 steps"
+    forces = [s.force_norm for s in rec.steps]
+    assert forces[1] > 1.0 and all(f < 0.25 for f in forces[-5:])
+
+
 def test_success_on_the_last_allowed_move_is_success() -> None:
     robot = FakeGuide()
-    cfg = ExecutorConfig(goal_travel=0.05, max_steps=5)
+    cfg = ExecutorConfig(goal=GoalConfig(travel=0.05), limits=LimitsConfig(max_steps=5))
     rec = Executor(robot, FixedDirection(), cfg).run(U)
     assert rec.outcome == "success" and rec.n_steps == 5
     rec = Executor(
-        FakeGuide(), FixedDirection(), ExecutorConfig(goal_travel=0.06, max_steps=5)
+        FakeGuide(),
+        FixedDirection(),
+        ExecutorConfig(goal=GoalConfig(travel=0.06), limits=LimitsConfig(max_steps=5)),
     ).run(U)
     assert rec.outcome == "timeout" and rec.n_steps == 5
 
@@ -402,11 +433,15 @@ def test_predicted_force_stops_before_the_limit() -> None:
 
 def test_derived_threshold_is_recorded() -> None:
     robot = FakeGuide()
-    rec = Executor(robot, FixedDirection(), ExecutorConfig(threshold=None, max_steps=2)).run(U)
+    rec = Executor(
+        robot, FixedDirection(), ExecutorConfig(threshold=None, limits=LimitsConfig(max_steps=2))
+    ).run(U)
     assert rec.threshold == pytest.approx(MIN_THRESHOLD)  # a noise-free fake: the floor
-    rec = Executor(FakeGuide(), FixedDirection(), ExecutorConfig(max_steps=2)).run(U)
+    rec = Executor(
+        FakeGuide(), FixedDirection(), ExecutorConfig(limits=LimitsConfig(max_steps=2))
+    ).run(U)
     assert rec.threshold == pytest.approx(MIN_THRESHOLD)  # derived is the default
-    cfg = ExecutorConfig(threshold=3.0, max_steps=2)
+    cfg = ExecutorConfig(threshold=3.0, limits=LimitsConfig(max_steps=2))
     assert Executor(FakeGuide(), FixedDirection(), cfg).run(U).threshold == 3.0
 
 
@@ -431,10 +466,10 @@ def test_revolute_normal_is_oriented_from_the_hinge_point() -> None:
     robot = FakeGuide()
     cfg = ExecutorConfig(
         constraint_type="revolute",
-        max_steps=2,
-        torque_policy=True,
         rotation_radius=0.5,
         hinge_point=(0.0, -0.5, 0.0),
+        limits=LimitsConfig(max_steps=2),
+        torque_policy=TorquePolicyConfig(enabled=True),
     )
     rec = Executor(robot, TurnTen(), cfg).run(U)
     assert any("flipped" in n for n in rec.notes)
@@ -453,7 +488,9 @@ class Flipped(FakeGuide):
 def test_self_check_names_a_flipped_sign() -> None:
     rec = Executor(Flipped(), FixedDirection(), ExecutorConfig()).run(d0(30))
     assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
-    rec = Executor(FakeGuide(), FixedDirection(), ExecutorConfig(max_steps=10)).run(d0(30))
+    rec = Executor(
+        FakeGuide(), FixedDirection(), ExecutorConfig(limits=LimitsConfig(max_steps=10))
+    ).run(d0(30))
     assert rec.outcome == "timeout"
     assert any(n.startswith("self-check passed") for n in rec.notes)
 
@@ -479,13 +516,17 @@ class Holds(FixedDirection):
 
 def test_a_hold_does_not_hide_a_flipped_sign() -> None:
     """The reading after a hold and the one after the hand starts again are compared with the
-    deflection only (SELF_CHECK_SETTLE_MOVES); a flipped sign is still caught, within the
+    deflection only (control.self_check.SETTLE_MOVES); a flipped sign is still caught, within the
     self-check's moves, and a healthy run passes."""
     cfg = ExecutorConfig()
     rec = Executor(Flipped(), Holds(lambda call: call == 2), cfg).run(d0(30))
     assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
-    assert rec.n_steps <= cfg.self_check_steps + 1
-    healthy = Executor(FakeGuide(), Holds(lambda call: call == 2), ExecutorConfig(max_steps=10))
+    assert rec.n_steps <= cfg.self_check.steps + 1
+    healthy = Executor(
+        FakeGuide(),
+        Holds(lambda call: call == 2),
+        ExecutorConfig(limits=LimitsConfig(max_steps=10)),
+    )
     rec = healthy.run(d0(30))
     assert rec.outcome == "timeout"
     assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
@@ -493,12 +534,16 @@ def test_a_hold_does_not_hide_a_flipped_sign() -> None:
 
 def test_holds_on_every_other_step_do_not_hide_a_flipped_sign() -> None:
     """Every reading then follows a hold or a restart, which the F.d test and the half-lag
-    confirmation skip (SELF_CHECK_SETTLE_MOVES); the cosine with the deflection still takes
+    confirmation skip (control.self_check.SETTLE_MOVES); the cosine with the deflection still takes
     them, and a flipped sign reads ~ -1 there whatever the hand does."""
     every_other = Holds(lambda call: call % 2 == 0)
-    rec = Executor(Flipped(), every_other, ExecutorConfig(max_steps=40)).run(d0(30))
+    rec = Executor(Flipped(), every_other, ExecutorConfig(limits=LimitsConfig(max_steps=40))).run(
+        d0(30)
+    )
     assert rec.outcome == "sensor_convention" and "sign flipped" in rec.reason
-    rec = Executor(FakeGuide(), every_other, ExecutorConfig(max_steps=40)).run(d0(30))
+    rec = Executor(FakeGuide(), every_other, ExecutorConfig(limits=LimitsConfig(max_steps=40))).run(
+        d0(30)
+    )
     assert rec.outcome == "timeout", rec.reason
 
 
@@ -517,7 +562,7 @@ def test_the_controller_is_told_the_last_move_and_the_hand_travel() -> None:
     """Before the first move neither is known; after it, the move (1 cm) and the hand's
     travel from the pose at that command: on the guide along U, 1 cm x cos(30 deg)."""
     ctrl = Inputs()
-    Executor(FakeGuide(), ctrl, ExecutorConfig(max_steps=3)).run(d0(30))
+    Executor(FakeGuide(), ctrl, ExecutorConfig(limits=LimitsConfig(max_steps=3))).run(d0(30))
     first, second = ctrl.inputs[:2]
     assert first.last_move is None and first.hand_travel is None
     assert second.last_move == pytest.approx(0.01)
@@ -593,7 +638,7 @@ class NumpyDrawer:
 @pytest.mark.parametrize("offset", [-30.0, 20.0])
 def test_an_outside_robot_reaches_a_goal_without_simulator(offset: float) -> None:
     robot = NumpyDrawer()
-    cfg = ExecutorConfig(goal_travel=0.2, workplane_normal=(0.0, 0.0, 1.0))
+    cfg = ExecutorConfig(workplane_normal=(0.0, 0.0, 1.0), goal=GoalConfig(travel=0.2))
     rec = Executor(robot, PolicyController(), cfg).run(d0(offset))  # type: ignore[arg-type]
     assert rec.outcome == "success" and rec.reason.startswith("goal: travel")
     assert robot.s >= 0.2 - 1e-9 and robot.held == 1
@@ -670,7 +715,7 @@ def test_an_invalid_reported_stiffness_is_ignored_and_named(report: object) -> N
     note = f"ignored translational_stiffness {report!r} (valid: finite, > 0 [N/m])"
     assert reported_stiffness(Reports()) == (None, note)
     ctrl = StepForceSeen()
-    rec = Executor(Reports(), ctrl, ExecutorConfig(max_steps=3)).run(d0(0))
+    rec = Executor(Reports(), ctrl, ExecutorConfig(limits=LimitsConfig(max_steps=3))).run(d0(0))
     assert note in rec.notes
     assert ctrl.seen and all(s is None for s in ctrl.seen)
 
@@ -683,7 +728,7 @@ def test_a_valid_reported_stiffness_gives_the_controller_k_delta() -> None:
     assert reported_stiffness(Reports()) == (2000.0, "")
     assert reported_stiffness(FakeGuide()) == (None, "")  # reports none: nothing to name
     ctrl = StepForceSeen()
-    cfg = ExecutorConfig(max_steps=3)
+    cfg = ExecutorConfig(limits=LimitsConfig(max_steps=3))
     rec = Executor(Reports(), ctrl, cfg).run(d0(0))
     assert not any("ignored" in n for n in rec.notes)
     assert ctrl.seen and all(s == pytest.approx(2000.0 * cfg.step_length) for s in ctrl.seen)
@@ -708,7 +753,7 @@ class PressingGuide(FakeGuide):
 
 
 def test_the_self_check_judges_the_workplane_only() -> None:
-    cfg = ExecutorConfig(max_steps=10, workplane_normal=(0.0, 0.0, 1.0))
+    cfg = ExecutorConfig(workplane_normal=(0.0, 0.0, 1.0), limits=LimitsConfig(max_steps=10))
     rec = Executor(PressingGuide(), FixedDirection(), cfg).run(d0(10))
     assert rec.outcome == "timeout", rec.reason  # healthy in the plane: not stopped
     assert any(n.startswith("self-check passed") for n in rec.notes), rec.notes
@@ -726,8 +771,295 @@ def test_the_self_check_judges_the_workplane_only() -> None:
 
 def test_too_few_judged_moves_leave_the_self_check_inconclusive() -> None:
     # aligned with the guide: no force in the plane, so no move is judged, only the press
-    cfg = ExecutorConfig(max_steps=10, workplane_normal=(0.0, 0.0, 1.0))
+    cfg = ExecutorConfig(workplane_normal=(0.0, 0.0, 1.0), limits=LimitsConfig(max_steps=10))
     rec = Executor(PressingGuide(), FixedDirection(), cfg).run(d0(0))
     assert rec.outcome == "timeout", rec.reason
     assert any(n.startswith("self-check inconclusive") for n in rec.notes), rec.notes
     assert not any(n.startswith("self-check passed") for n in rec.notes)
+
+
+# --- the run's inputs and the controller's stages -------------------------------------------
+class Staged(FixedDirection):
+    """A stand-in for a controller with stages: each needs some of the run's inputs."""
+
+    def __init__(self, rotation_rate: float | None = None) -> None:
+        self.rotation_rate = rotation_rate
+        self.asked: list[str] = []
+
+    def stage_inputs(self, constraint_type: str) -> dict[str, tuple[str, ...]]:
+        self.asked.append(constraint_type)
+        return {
+            "magnitude_input": ("step_force",),
+            "mirror_average": ("workplane_normal", "step_force"),
+            "feed_forward": ("rotation_rate",),
+            "lag_undo": ("tracking_time_constant",),
+            "play": ("play_force",),
+        }
+
+
+@dataclass
+class Lagging(Stiff):
+    """Stiff, also reporting its tracking time constant."""
+
+    tracking_time_constant: float = 0.05
+
+
+def constraint_aware_warnings(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [
+        r.getMessage()
+        for r in caplog.records
+        if r.name == "constraint_aware" and r.levelno == logging.WARNING
+    ]
+
+
+def test_the_record_lists_each_input_with_its_source() -> None:
+    rec = Executor(
+        FakeGuide(), FixedDirection(), ExecutorConfig(limits=LimitsConfig(max_steps=2))
+    ).run(U)
+    assert list(rec.inputs) == list(INPUT_NAMES)
+    missing = {"value": None, "source": "missing"}
+    assert rec.inputs["step_force"] == missing  # the fake reports no stiffness
+    assert rec.inputs["tracking_time_constant"] == missing
+    assert rec.inputs["workplane_normal"] == {"value": [0.0, 0.0, 1.0], "source": "config"}
+    assert rec.inputs["rotation_rate"] == missing  # FixedDirection has none
+    assert rec.inputs["play_force"] == missing  # no grasp play configured
+    assert rec.stages == {}  # a controller without stage_inputs has no stages
+
+    cfg = ExecutorConfig(limits=LimitsConfig(max_steps=2), robot=RobotOverrides(grasp_play=0.0015))
+    rec = Executor(Lagging(), Staged(rotation_rate=0.4), cfg).run(U)
+    assert rec.inputs["step_force"] == {"value": pytest.approx(20.0), "source": "robot"}
+    assert rec.inputs["tracking_time_constant"] == {"value": 0.05, "source": "robot"}
+    assert rec.inputs["rotation_rate"] == {"value": 0.4, "source": "controller"}
+    assert rec.inputs["play_force"] == {"value": pytest.approx(3.0), "source": "config"}
+
+    override = ExecutorConfig(
+        limits=LimitsConfig(max_steps=2), robot=RobotOverrides(stiffness=2500.0)
+    )
+    rec = Executor(FakeGuide(), FixedDirection(), override).run(U)
+    assert rec.inputs["step_force"] == {"value": pytest.approx(25.0), "source": "config"}
+    play_unknown = ExecutorConfig(
+        limits=LimitsConfig(max_steps=2), robot=RobotOverrides(grasp_play=0.001)
+    )
+    rec = Executor(FakeGuide(), FixedDirection(), play_unknown).run(U)  # no stiffness to use it
+    assert rec.inputs["play_force"] == missing
+
+
+def test_stages_are_recorded_and_each_missing_input_warned_once(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    caplog.set_level(logging.WARNING, logger="constraint_aware")
+    ctrl = Staged()
+    cfg = ExecutorConfig(limits=LimitsConfig(max_steps=3), constraint_type="revolute")
+    rec = Executor(FakeGuide(), ctrl, cfg).run(U)
+    assert ctrl.asked == ["revolute"]
+    assert rec.stages == {
+        "magnitude_input": "off: missing step_force",
+        "mirror_average": "off: missing step_force",
+        "feed_forward": "off: missing rotation_rate",
+        "lag_undo": "off: missing tracking_time_constant",
+        "play": "off: missing play_force",
+    }
+    lines = constraint_aware_warnings(caplog)
+    assert len(lines) == 4  # one per missing input, not per stage nor per step
+    step_force = [line for line in lines if line.startswith("step_force missing")]
+    assert step_force == [
+        "step_force missing (the robot reports no translational_stiffness and "
+        "ExecutorConfig.robot.stiffness is not set): stages magnitude_input, mirror_average off"
+    ]
+    assert any(line.startswith("rotation_rate missing (") for line in lines)
+
+    caplog.clear()
+    flat = ExecutorConfig(limits=LimitsConfig(max_steps=3), workplane_normal=None)
+    rec = Executor(FakeGuide(), Staged(), flat).run(U)
+    assert rec.stages["mirror_average"] == "off: missing workplane_normal, step_force"
+    assert rec.inputs["workplane_normal"] == {"value": None, "source": "missing"}
+
+    caplog.clear()
+    complete = ExecutorConfig(
+        limits=LimitsConfig(max_steps=3), robot=RobotOverrides(grasp_play=0.001)
+    )
+    rec = Executor(Lagging(), Staged(rotation_rate=0.4), complete).run(U)
+    assert set(rec.stages.values()) == {"active"}
+    assert constraint_aware_warnings(caplog) == []
+
+
+def test_inputs_and_stages_survive_json(tmp_path: Path) -> None:
+    rec = Executor(FakeGuide(), Staged(), ExecutorConfig(limits=LimitsConfig(max_steps=2))).run(U)
+    back = RunRecord.load(rec.save(tmp_path / "r.json"))
+    assert back.inputs == rec.inputs and back.stages == rec.stages
+    data = json.loads((tmp_path / "r.json").read_text())
+    assert data["stages"]["lag_undo"] == "off: missing tracking_time_constant"
+
+
+@pytest.mark.parametrize(
+    "answer",
+    [["step_force"], {"magnitude_input": ("stiffness",)}, {"magnitude_input": "step_force"}],
+)
+def test_a_bad_stage_declaration_is_named_and_the_robot_held(answer: object) -> None:
+    class BadStages(FixedDirection):
+        def stage_inputs(self, constraint_type: str) -> object:
+            return answer
+
+    robot = Holding()
+    with pytest.raises(InvalidInputError, match=r"stage_inputs") as info:
+        Executor(robot, BadStages(), ExecutorConfig()).run(U)
+    rec = info.value.run_record  # type: ignore[attr-defined]
+    assert rec.outcome == "error" and "stage_inputs" in rec.reason
+    assert robot.holds == 1 and robot.commands == []
+
+
+# --- the step API never trusts its arguments -------------------------------------------------
+GOOD_WRENCH = Wrench(np.zeros(3), np.zeros(3))
+GOOD_POSE = Pose(np.zeros(3), Rotation.identity())
+BAD_STEPS: list[tuple[object, object, str]] = [
+    ([0.0, 0.0, 0.0], GOOD_POSE, r"wrench: expected a Wrench"),
+    ((np.zeros(3), np.zeros(3)), GOOD_POSE, r"wrench: expected a Wrench"),
+    (Wrench(np.zeros(2), np.zeros(3)), GOOD_POSE, r"wrench\.force: expected shape \(3,\)"),
+    (Wrench(np.array([1j, 0, 0]), np.zeros(3)), GOOD_POSE, r"wrench\.force: .*complex"),
+    (Wrench(np.zeros(3), "abc"), GOOD_POSE, r"wrench\.torque"),  # type: ignore[arg-type]
+    (Wrench(np.array([None, 0, 0]), np.zeros(3)), GOOD_POSE, r"wrench\.force"),
+    (Wrench(np.ones(3, dtype=bool), np.zeros(3)), GOOD_POSE, r"wrench\.force"),
+    (GOOD_WRENCH, np.zeros(3), r"pose: expected a Pose"),
+    (GOOD_WRENCH, Pose(np.zeros(4), Rotation.identity()), r"pose\.position: expected shape"),
+    (GOOD_WRENCH, Pose(np.zeros((1, 3)), Rotation.identity()), r"pose\.position: expected shape"),
+    (GOOD_WRENCH, Pose(np.zeros(3), np.eye(3)), r"pose\.orientation"),
+    (
+        GOOD_WRENCH,
+        Pose(np.zeros(3), Rotation.from_quat([[0, 0, 0, 1], [0, 0, 0, 1]])),
+        r"pose\.orientation: expected a single",
+    ),
+]
+
+
+@pytest.mark.parametrize("moving", [False, True], ids=["sampling", "moving"])
+@pytest.mark.parametrize(("wrench", "pose", "match"), BAD_STEPS)
+def test_a_malformed_step_argument_is_named_the_record_kept_and_the_robot_held(
+    wrench: object, pose: object, match: str, moving: bool
+) -> None:
+    robot = Holding()
+    ex = Executor(robot, FixedDirection(), ExecutorConfig())
+    record = ex.start(U)
+    for _ in range(HOLD + 3 if moving else 2):  # good periods first
+        out = ex.step(robot.read_wrench(), robot.read_pose())
+        assert isinstance(out, Pose)
+        robot.command_pose(out)
+        robot.advance()
+    sent = len(robot.commands)
+    with pytest.raises(InvalidInputError, match=match) as info:
+        ex.step(wrench, pose)  # type: ignore[arg-type]
+    assert info.value.run_record is record  # type: ignore[attr-defined]
+    assert record.outcome == "error" and "InvalidInputError" in record.reason
+    assert robot.holds == 1
+    assert ex.step(robot.read_wrench(), robot.read_pose()) is record  # finished: no command
+    assert len(robot.commands) == sent
+
+
+def test_a_non_finite_reading_is_a_sensor_fault_not_an_input_error() -> None:
+    """NaN readings are well-formed: the guards stop on them with a named outcome."""
+    robot = Holding(nan_after=HOLD + 2)
+    rec = Executor(robot, FixedDirection(), ExecutorConfig()).run(U)
+    assert rec.outcome == "nan" and robot.holds == 1
+
+    @dataclass
+    class NanPose(Holding):
+        def read_pose(self) -> Pose:
+            return Pose(np.full(3, np.nan), self.target.orientation)
+
+    rec = Executor(NanPose(), FixedDirection(), ExecutorConfig()).run(U)
+    assert rec.outcome == "bad_pose"
+
+
+@pytest.mark.parametrize(
+    ("d0", "match"),
+    [
+        ([1.0, math.nan, 0.0], r"initial_direction: contains NaN"),
+        ([1.0, math.inf, 0.0], r"initial_direction: contains NaN or inf"),
+        (np.array([1.0 + 1j, 0.0, 0.0]), r"initial_direction: .*complex"),
+        ([1.0, 0.0], r"initial_direction: expected shape \(3,\)"),
+        ([0.0, 0.0, 0.0], r"initial_direction: must be a non-zero vector"),
+        ("x", r"initial_direction"),
+    ],
+)
+def test_a_bad_initial_direction_is_named_and_the_robot_held(d0: object, match: str) -> None:
+    robot = Holding()
+    ex = Executor(robot, FixedDirection(), ExecutorConfig())
+    with pytest.raises(InvalidInputError, match=match) as info:
+        ex.start(d0)  # type: ignore[arg-type]
+    record = info.value.run_record  # type: ignore[attr-defined]
+    assert record.outcome == "error" and record is ex.record
+    assert robot.holds == 1
+    assert ex.step(robot.read_wrench(), robot.read_pose()) is record
+    assert robot.commands == []
+
+
+def test_a_label_that_is_not_a_dict_is_named() -> None:
+    with pytest.raises(InvalidInputError, match="label: expected a dict"):
+        Executor(Holding(), FixedDirection(), ExecutorConfig()).start(U, ["task"])  # type: ignore[arg-type]
+
+
+def test_a_non_finite_commanded_pose_at_the_start_is_never_sent() -> None:
+    @dataclass
+    class Lost(Holding):
+        def commanded_pose(self) -> Pose:
+            return Pose(np.array([0.0, math.nan, 0.0]), Rotation.identity())
+
+    robot = Lost()
+    rec = Executor(robot, FixedDirection(), ExecutorConfig()).run(U)
+    assert rec.outcome == "bad_pose" and "commanded pose" in rec.reason
+    assert robot.commands == [] and robot.holds == 1
+
+
+def test_a_second_start_aborts_the_run_in_progress() -> None:
+    robot = Holding()
+    ex = Executor(robot, FixedDirection(), ExecutorConfig())
+    first = ex.start(U, {"run": 1})
+    for _ in range(HOLD + 3):
+        out = ex.step(robot.read_wrench(), robot.read_pose())
+        assert isinstance(out, Pose)
+        robot.command_pose(out)
+        robot.advance()
+    second = ex.start(U, {"run": 2})
+    assert first.outcome == "aborted" and "start() was called again" in first.reason
+    assert "aborted" in OUTCOMES and OUTCOME_MEANINGS["aborted"]
+    assert robot.holds == 1  # told to hold when the first run ended
+    assert second is ex.record and not second.finished and second.label == {"run": 2}
+    held = ex.step(robot.read_wrench(), robot.read_pose())  # sampling F_d again: the hold pose
+    assert isinstance(held, Pose) and held.position.tolist() == robot.target.position.tolist()
+    # a finished run is not aborted: starting after it ends nothing
+    done = Executor(robot, FixedDirection(), ExecutorConfig(limits=LimitsConfig(max_steps=1))).run(
+        U
+    )
+    assert done.outcome == "timeout"
+
+
+# --- 3-D motion: no workplane normal ---------------------------------------------------------
+THREE_D = ExecutorConfig(workplane_normal=None, limits=LimitsConfig(max_steps=6))
+
+
+@pytest.mark.parametrize(
+    "controller",
+    [FixedDirection(), ProjectionController(), PolicyController(), Staged()],
+    ids=["fixed", "projection", "policy", "staged"],
+)
+def test_3d_motion_runs_every_controller(controller: Any) -> None:
+    up = np.array([1.0, 0.0, 1.0]) / math.sqrt(2)  # out of any workplane: kept in 3-D
+    robot = FakeGuide()
+    rec = Executor(robot, controller, THREE_D, monitor=robot).run(up)
+    assert rec.outcome == "timeout", rec.reason
+    assert rec.steps[0].direction == pytest.approx(up.tolist())
+    assert rec.inputs["workplane_normal"]["source"] == "missing"
+
+
+def test_3d_motion_revolute_and_goals() -> None:
+    robot = FakeGuide()
+    revolute = dataclasses.replace(THREE_D, constraint_type="revolute")
+    rec = Executor(robot, ProjectionController(), revolute).run(d0(20))
+    assert rec.outcome == "timeout", rec.reason
+    travel = dataclasses.replace(THREE_D, goal=GoalConfig(travel=0.03))
+    assert Executor(FakeGuide(), FixedDirection(), travel).run(U).outcome == "success"
+    with pytest.raises(ConfigError, match=r"ExecutorConfig\.workplane_normal"):
+        dataclasses.replace(THREE_D, goal=GoalConfig(rotation=1.0))
+    with pytest.raises(ConfigError, match=r"ExecutorConfig\.workplane_normal"):
+        dataclasses.replace(
+            THREE_D, rotation_radius=0.1, torque_policy=TorquePolicyConfig(enabled=True)
+        )

@@ -13,9 +13,9 @@ from gymnasium.utils.env_checker import check_env
 
 import constraint_aware  # registers the environments
 from constraint_aware.envs import ENV_IDS, SINGLE_SYSTEM_ID, TASK_ENV_IDS
+from constraint_aware.envs.single_system_vector import SingleSystemVectorEnv
 from constraint_aware.training.batch import SingleSystemBatch
 from constraint_aware.training.config import EnvConfig
-from constraint_aware.training.gym_vector import SingleSystemVectorEnv
 
 
 def test_every_id_is_registered_on_import_without_heavy_imports() -> None:
@@ -184,7 +184,7 @@ def test_task_force_limit_is_a_termination_and_timeout_a_truncation() -> None:
     while not (terminated or truncated):
         obs, _, terminated, truncated, info = env.step(obs["direction"])  # never corrects
     assert terminated and info["outcome"] == "force_limit"
-    env = gym.make("constraint_aware/DrawerOpening-v0", executor={"max_steps": 3})
+    env = gym.make("constraint_aware/DrawerOpening-v0", executor={"limits__max_steps": 3})
     obs, _ = env.reset(seed=0)
     terminated = truncated = False
     while not (terminated or truncated):
@@ -194,7 +194,7 @@ def test_task_force_limit_is_a_termination_and_timeout_a_truncation() -> None:
 
 def test_task_run_ended_during_reset_ends_at_the_first_step() -> None:
     # a 3.5 N limit: the executor refuses the first move (predicted |F| ~ 20 N) during reset
-    env = gym.make("constraint_aware/DrawerOpening-v0", executor={"force_limit": 3.5})
+    env = gym.make("constraint_aware/DrawerOpening-v0", executor={"limits__force_limit": 3.5})
     obs, info = env.reset(seed=0)
     assert info["outcome"] == "force_limit"
     _, reward, terminated, truncated, info = env.step(obs["direction"])

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -132,6 +133,36 @@ def test_readme_test_command_is_what_ci_runs() -> None:
     ]
     assert ci == [readme_test]
     assert "-c constraints.txt" in readme_test and "python -m pytest" in readme_test
+
+
+def _extra(extras: dict[str, list[str]], name: str) -> set[str]:
+    """The distributions an extra installs, its references to other extras resolved."""
+    out: set[str] = set()
+    for req in extras[name]:
+        dist = re.split(r"[\[<>=;\s]", req, maxsplit=1)[0]
+        if dist == "constraint-aware":
+            for inner in req.split("[", 1)[1].split("]", 1)[0].split(","):
+                out |= _extra(extras, inner.strip())
+        else:
+            out.add(dist)
+    return out
+
+
+def test_the_first_command_installs_what_cap_bench_needs() -> None:
+    """The README's first command installs the extra every bench section's needs name, and
+    that extra installs the Jaco's models (dm-control): `cap bench` then skips nothing."""
+    import tomllib
+
+    from constraint_aware.bench.run import BENCH_EXTRA, ROBOT_NEEDS
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"
+    ]
+    assert {need.extra for need in ROBOT_NEEDS.values()} == {BENCH_EXTRA}
+    assert "dm-control" in _extra(extras, BENCH_EXTRA)
+    readme = (ROOT / "README.md").read_text()
+    first = readme.split("```bash\n", 1)[1].splitlines()[0].split("#")[0].strip()
+    assert first == f'pip install -e ".[{BENCH_EXTRA}]" && cap bench'
 
 
 def test_citation_names_the_paper() -> None:

@@ -230,7 +230,7 @@ def test_revolute_words_with_too_short_an_arc_is_a_clear_error() -> None:
         (
             '{"format": "cap-demo/1", "instruction": "x", "object": "y", "t": [0, 1], '
             '"position": [["a", 0, 0], [0, 0, 0]]}',
-            "non-numeric",
+            r"field 'position'\[0\]\[0\]: 'a' is not a number",
         ),
         ("[1, 2]", "JSON object"),
     ],

@@ -365,7 +365,9 @@ def test_a_run_after_the_probe_uses_the_measured_stiffness() -> None:
     assert play, record.notes
     assert 1.2 <= float(play[0].split()[2]) <= 1.8  # [mm]
     # an explicit setting wins over what the probe measured: the compensation turned off
-    spec = RunSpec("drawer-opening", seed=0, probe=True, overrides=(("executor__grasp_play", 0.0),))
+    spec = RunSpec(
+        "drawer-opening", seed=0, probe=True, overrides=(("executor__robot__grasp_play", 0.0),)
+    )
     off, _sim = run(spec)
     assert any(n.startswith("stiffness ") for n in off.notes)  # still measured
     assert not any(n.startswith("grasp play ") for n in off.notes), off.notes
@@ -583,8 +585,11 @@ def test_probed_settings_carry_the_measured_stiffness_and_capped_play() -> None:
     result = probe_sensor(Rail(play=0.0015, rail_stiffness=12000.0), N)
     cfg = ExecutorConfig()
     settings = probed_settings(result, cfg)
-    assert settings["stiffness"] == result.arm_stiffness
-    assert settings["grasp_play"] == result.play
+    assert settings["robot__stiffness"] == result.arm_stiffness
+    assert settings["robot__grasp_play"] == result.play
+    probed = cfg.with_overrides(**settings)
+    assert probed.robot.stiffness == result.arm_stiffness
+    assert probed.robot.grasp_play == result.play
     short = ExecutorConfig(step_length=0.002)  # half a 2 mm step is less than the play
-    assert probed_settings(result, short)["grasp_play"] == max_grasp_play(0.002) == 0.001
+    assert probed_settings(result, short)["robot__grasp_play"] == max_grasp_play(0.002) == 0.001
     assert probed_settings(probe_sensor(Rail(sign=-1.0), N), cfg) == {}  # convention wrong

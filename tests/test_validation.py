@@ -11,6 +11,7 @@ import pytest
 
 from constraint_aware.bench.run import check_out_dir, run_bench
 from constraint_aware.control.executor import ExecutorConfig
+from constraint_aware.control.executor_config import LimitsConfig
 from constraint_aware.control.settings import parse_settings
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.errors import CapError, ConfigError, InvalidInputError, UnknownNameError
@@ -20,51 +21,96 @@ from constraint_aware.sim.tasks import task_config
 
 NAN, INF = math.nan, math.inf
 
+# (`ExecutorConfig.with_overrides` key, bad value): the error names the dotted field
 EXECUTOR_BAD: list[tuple[str, Any]] = [
-    ("force_limit", NAN),
-    ("force_limit", INF),
-    ("force_limit", 0.0),
-    ("force_limit", 0.1),  # below the derived dead band's 0.2 N floor
+    ("limits__force_limit", NAN),
+    ("limits__force_limit", INF),
+    ("limits__force_limit", 0.0),
+    ("limits__force_limit", 0.1),  # below the derived dead band's 0.2 N floor
     ("step_length", NAN),
     ("step_length", 0.5),
     ("step_length", -0.01),
     ("step_length", 0.0),
     ("threshold", NAN),
     ("threshold", -1.0),
-    ("max_steps", 0),
-    ("max_steps", -5),
-    ("max_steps", 2.5),
-    ("offset_samples", 0),
-    ("offset_samples", 1),
+    ("limits__max_steps", 0),
+    ("limits__max_steps", -5),
+    ("limits__max_steps", 2.5),
+    ("timing__offset_samples", 0),
+    ("timing__offset_samples", 1),
     ("workplane_normal", (0.0, 0.0, 0.0)),
     ("workplane_normal", (0.0, NAN, 1.0)),
     ("workplane_normal", (0.0, 1.0)),
-    ("goal_travel", -0.1),
-    ("goal_travel", NAN),
-    ("goal_rotation", 0.0),
+    ("goal__travel", -0.1),
+    ("goal__travel", NAN),
+    ("goal__rotation", 0.0),
     ("hinge_point", (0.0, INF, 0.0)),
-    ("lost_contact_steps", 0),
-    ("contact_force", NAN),
-    ("torque_alpha", 0.0),
-    ("max_lead", -0.01),
-    ("stale_steps", 1),
-    ("torque_policy", "yes"),
-    ("predictive_force", 1),
+    ("rotation_radius", 0.0),
+    ("guards__lost_contact_steps", 0),
+    ("guards__contact_force", NAN),
+    ("guards__lost_contact_force", -0.1),
+    ("guards__pose_jump_margin", 0.0),
+    ("guards__pose_fault_steps", 0),
+    ("guards__max_lead", -0.01),
+    ("guards__follow_patience", 0),
+    ("guards__stale_steps", 1),
+    ("guards__predictive_force", 1),
+    ("guards__min_step_fraction", 1.5),
+    ("self_check__steps", -1),
+    ("robot__stiffness", 0.0),
+    ("robot__grasp_play", -0.001),
+    ("robot__grasp_play", 0.006),  # more than half a 1 cm step
+    ("torque_policy__enabled", "yes"),
+    ("torque_policy__alpha", 0.0),
+    ("torque_policy__beta_deg", 91.0),
     ("constraint_type", "spherical"),
     ("command_from", "guess"),
 ]
 
 
-@pytest.mark.parametrize(("name", "value"), EXECUTOR_BAD)
-def test_bad_executor_config_names_the_field(name: str, value: Any) -> None:
+@pytest.mark.parametrize(("key", "value"), EXECUTOR_BAD)
+def test_bad_executor_config_names_the_dotted_field(key: str, value: Any) -> None:
     with pytest.raises(ConfigError) as info:
-        ExecutorConfig(**{name: value})
-    field = info.value.field
-    assert field.startswith("ExecutorConfig.")
-    # the message names the field (or, for the limit below the band, the field it violates)
-    assert field.split(".")[1] in (name, "force_limit")
+        ExecutorConfig().with_overrides(**{key: value})
+    assert info.value.field == "ExecutorConfig." + key.replace("__", ".")
     assert "must be" in str(info.value)
     assert isinstance(info.value, InvalidInputError) and isinstance(info.value, CapError)
+
+
+@pytest.mark.parametrize(
+    ("fields", "named"),
+    [
+        # the torque policy needs a radius and a normal to turn about
+        ({"torque_policy__enabled": True}, "ExecutorConfig.rotation_radius"),
+        (
+            {"torque_policy__enabled": True, "rotation_radius": 0.1, "workplane_normal": None},
+            "ExecutorConfig.workplane_normal",
+        ),
+        ({"goal__rotation": 1.0, "workplane_normal": None}, "ExecutorConfig.workplane_normal"),
+        ({"goal__travel": 0.2, "goal__rotation": 1.0}, "ExecutorConfig.goal.rotation"),
+        ({"step_length": 0.002, "robot__grasp_play": 0.002}, "ExecutorConfig.robot.grasp_play"),
+    ],
+)
+def test_fields_that_depend_on_each_other_name_the_field(
+    fields: dict[str, Any], named: str
+) -> None:
+    with pytest.raises(ConfigError) as info:
+        ExecutorConfig().with_overrides(**fields)
+    assert info.value.field == named
+
+
+def test_a_group_of_the_wrong_type_is_named() -> None:
+    with pytest.raises(ConfigError, match=r"ExecutorConfig\.limits = 40: must be a LimitsConfig"):
+        ExecutorConfig(limits=40)  # type: ignore[arg-type]
+
+
+def test_unknown_override_keys_list_the_valid_ones() -> None:
+    for key in ("force_limit", "limits", "limits__force", "ramp_up_steps"):
+        with pytest.raises(UnknownNameError, match="limits__force_limit"):
+            ExecutorConfig().with_overrides(**{key: 1})
+    cfg = ExecutorConfig().with_overrides(limits__force_limit=40, step_length=0.005)
+    assert cfg.limits.force_limit == 40 and cfg.step_length == 0.005
+    assert cfg.limits.max_steps == ExecutorConfig().limits.max_steps  # the rest kept
 
 
 def test_message_states_the_valid_range() -> None:
@@ -72,7 +118,7 @@ def test_message_states_the_valid_range() -> None:
                        r"\(0, 0\.05\] \[m\]"):  # fmt: skip
         ExecutorConfig(step_length=0.5)
     with pytest.raises(ConfigError, match=r"force_limit = 2\.0: must be > threshold \(3 N\)"):
-        ExecutorConfig(force_limit=2.0, threshold=3.0)
+        ExecutorConfig(threshold=3.0, limits=LimitsConfig(force_limit=2.0))
 
 
 def test_workplane_normal_is_normalized() -> None:
@@ -83,7 +129,7 @@ def test_workplane_normal_is_normalized() -> None:
 
 
 def test_derived_threshold_allows_any_positive_limit() -> None:
-    assert ExecutorConfig(threshold=None, force_limit=1.0).threshold is None
+    assert ExecutorConfig(threshold=None, limits=LimitsConfig(force_limit=1.0)).threshold is None
 
 
 TASK_BAD: list[tuple[str, dict[str, Any], str]] = [
@@ -196,9 +242,10 @@ def test_settings_map_dotted_keys_and_parse_values() -> None:
             "object.radius=0.08",
             "hand.translational_stiffness=8000",
             "executor.threshold=1",
-            "executor.goal_travel=2e-1",
-            "executor.predictive_force=false",
-            "executor.max_lead=none",
+            "executor.goal.travel=2e-1",
+            "executor.guards.predictive_force=false",
+            "executor.guards.max_lead=none",
+            "executor.limits.force_limit=40",
             "force_limit=40",
             "object.axis=0,1,0",  # the task's workplane normal follows the object (sim.tasks)
         ]
@@ -212,9 +259,10 @@ def test_settings_map_dotted_keys_and_parse_values() -> None:
     }
     assert dict(s.executor_overrides) == {
         "threshold": 1,
-        "goal_travel": 0.2,
-        "predictive_force": False,
-        "max_lead": None,
+        "goal__travel": 0.2,
+        "guards__predictive_force": False,
+        "guards__max_lead": None,
+        "limits__force_limit": 40,
     }
 
 
@@ -224,6 +272,10 @@ def test_settings_map_dotted_keys_and_parse_values() -> None:
         ("objet.mass=3", "valid names: executor, hand, object"),
         ("object.mas=3", "valid names: .*object.mass"),
         ("executor.treshold=1", "executor.threshold"),
+        ("executor.force_limit=1", "executor.limits.force_limit"),  # a group's field
+        ("executor.limits=1", "executor.limits.max_steps"),  # a group is not a field
+        ("executor.limits__max_steps=1", "executor.limits.max_steps"),  # dots, not __
+        ("executor.ramp_up_steps=1", "executor.goal.travel"),
         ("forcelimit=1", "force_limit"),
         ("object=3", "unknown setting 'object'"),
     ],
@@ -255,6 +307,48 @@ def test_settings_reach_the_run_and_bad_values_fail_before_moving() -> None:
         run(bad)
     with pytest.raises(UnknownNameError):
         RunSpec(overrides=(("executor__treshold", 1.0),))
+    with pytest.raises(UnknownNameError, match="executor__limits__max_steps"):
+        RunSpec(overrides=(("executor__max_steps", 1),))  # a group's field needs its group
+
+
+def test_cap_run_json_shows_the_settings_inputs_and_stages(tmp_path: Path) -> None:
+    from constraint_aware.cli import main
+    from constraint_aware.control.run_inputs import INPUT_NAMES
+
+    path = tmp_path / "r.json"
+    rc = main(
+        [
+            "run", "drawer-opening", "--controller", "fixed", "--offset", "0",
+            "--set", "max_steps=5", "--set", "executor.limits.max_steps=2",
+            "--set", "executor.robot.grasp_play=0.001", "--json", str(path),
+        ]
+    )  # fmt: skip
+    data = json.loads(path.read_text())
+    assert rc == 1 and data["outcome"] == "timeout"
+    assert data["summary"]["steps"] == 2  # the executor's own field wins over the task's
+    assert list(data["inputs"]) == list(INPUT_NAMES)
+    k = task_config("drawer-opening").hand.translational_stiffness
+    assert data["inputs"]["play_force"] == {"value": pytest.approx(k * 0.001), "source": "config"}
+    assert data["inputs"]["step_force"]["source"] == "robot"
+    assert data["stages"] == {}  # the fixed controller declares no stages
+
+
+def test_a_3d_executor_runs_in_the_simulator_and_the_gym_env() -> None:
+    """`workplane_normal=None` (3-D motion): d0 still turns about the task's normal, and the
+    controllers get no rotation axis."""
+    spec = RunSpec("door-opening", "policy", 10.0).with_settings(
+        parse_settings(["executor.workplane_normal=none", "executor.limits.max_steps=3"])
+    )
+    record, _sim = run(spec)
+    assert record.outcome == "timeout", record.reason
+    assert record.inputs["workplane_normal"]["source"] == "missing"
+    gym = pytest.importorskip("gymnasium")  # importing constraint_aware registers the envs
+    env = gym.make(
+        "constraint_aware/DrawerOpening-v0",
+        executor={"workplane_normal": None, "limits__max_steps": 2},
+    )
+    env.reset(seed=0)
+    env.close()
 
 
 def test_errors_survive_pickling_between_processes() -> None:

@@ -5,16 +5,10 @@ name (string entry points: nothing heavy is imported); no environment variable, 
 backend, no GL choice (see `constraint_aware.sim.render` for when the GL backend is chosen).
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
 from constraint_aware.envs import register_envs as _register_envs
 from constraint_aware.errors import CapError, InvalidInputError, PolicyFileError, UnknownNameError
 from constraint_aware.policy import ConstraintAwarePolicy
-
-try:  # one version source: the installed distribution's metadata (pyproject.toml)
-    __version__ = version("constraint-aware")
-except PackageNotFoundError:  # a source tree on sys.path without an installed distribution
-    __version__ = "0+unknown"
+from constraint_aware.version import __version__
 
 _register_envs()  # string entry points only: nothing heavy is imported here
 

@@ -152,7 +152,7 @@ def _add_json(p: argparse.ArgumentParser | argparse._ArgumentGroup, what: str) -
     p.add_argument("--json", metavar="PATH", help=f"write {what} as JSON here ('-' = stdout)")
 
 
-def _add_policy(p: argparse.ArgumentParser) -> None:
+def _add_policy(p: argparse.ArgumentParser | argparse._ArgumentGroup) -> None:
     from constraint_aware import policy
 
     names: tuple[str, ...] = tuple(getattr(policy, "POLICY_NAMES", ()))
@@ -165,16 +165,18 @@ def _add_policy(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_robot(p: argparse.ArgumentParser, what: str) -> None:
-    from constraint_aware.sim.embodiment import DEFAULT_ROBOT, EMBODIMENTS, ROBOT_PARAMS
+def _add_robot(
+    p: argparse.ArgumentParser | argparse._ArgumentGroup, what: str, default: str | None = None
+) -> None:
+    """--robot; `default` None: the default robot ("": none, to see whether it was given)."""
+    from constraint_aware.sim.embodiment import DEFAULT_ROBOT, EMBODIMENTS, variant_ranges
 
-    variants = ", ".join(f"{k} {lo:g}-{hi:g}" for k, (lo, hi) in ROBOT_PARAMS.items())
     p.add_argument(
         "--robot",
-        default=DEFAULT_ROBOT,
+        default=DEFAULT_ROBOT if default is None else default,
         metavar="NAME[:KEY=VALUE,...]",
-        help=f"the embodiment {what}: {', '.join(EMBODIMENTS)}, optionally with variants "
-        f"({variants}), e.g. jaco:stiffness=5000,period=0.05",
+        help=f"the embodiment {what} (default: {DEFAULT_ROBOT}): {', '.join(EMBODIMENTS)}, "
+        f"optionally with variants ({variant_ranges()}), e.g. jaco:stiffness=2000,period=0.2",
     )
 
 
@@ -277,7 +279,7 @@ def cmd_train(args: argparse.Namespace) -> int:
         result.policy.save(target)
         (target.parent / "training_log.csv").write_text((out / "training_log.csv").read_text())
         out_console.print(Text(f"shipped policy written to {target}"))
-    _print_metrics(metrics, out_console)
+    _print_metrics(metrics, out_console, "training environment (the --env.* flags)")
     reached = result.target_reached_s
     out_console.print(
         Text(
@@ -300,10 +302,13 @@ def cmd_train(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _print_metrics(metrics: dict[str, dict[str, Any]], out: Console) -> None:
-    table = Table(title="final angle between d and u after 5 actions (standard evaluation)")
+def _print_metrics(metrics: dict[str, dict[str, Any]], out: Console, where: str) -> None:
+    """The evaluation table: per controller, the final angle between d and u and the return;
+    `where` names the environment the episodes came from (a heading line above the table)."""
+    out.print(Text(f"{where}: final angle between d and u after the episode", style="bold"))
+    table = Table()
     for col in ("controller", "mean [deg]", "p95 [deg]", "mean return"):
-        table.add_column(col, justify="right" if col != "controller" else "left")
+        table.add_column(Text(col), justify="right" if col != "controller" else "left")
     for name, m in metrics.items():
         table.add_row(
             Text(name),
@@ -315,33 +320,91 @@ def _print_metrics(metrics: dict[str, dict[str, Any]], out: Console) -> None:
 
 
 # --- cap eval ---------------------------------------------------------------------------------
+#: cap eval's largest --episodes: every episode's angles are kept (about 100 bytes each).
+MAX_EVAL_EPISODES = 10_000_000
+
+
 def _eval_parser(p: argparse.ArgumentParser) -> None:
     _add_policy(p)
-    p.add_argument("--episodes", type=int, default=10_000, help="episodes per controller")
-    p.add_argument("--seed", type=int, default=12345, help="seeds the episodes")
+    p.add_argument(
+        "--episodes",
+        type=int,
+        default=10_000,
+        help=f"episodes per controller and environment (1 to {MAX_EVAL_EPISODES:,})",
+    )
+    p.add_argument("--seed", type=int, default=12345, help="seeds the episodes (>= 0)")
     _add_json(p, "the results")
     p.set_defaults(func=cmd_eval)
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
+    """The policy beside the reference controllers in the environment it was trained in (its
+    card's env_config) and, when that has resistance, in the standard evaluation's
+    resistance-free environment; the card's own standard evaluation is shown under its name."""
     from constraint_aware.policy import ConstraintAwarePolicy
     from constraint_aware.training.config import EnvConfig
-    from constraint_aware.training.evaluate import evaluate
+    from constraint_aware.training.evaluate import evaluate, standard_config
     from constraint_aware.training.reference import reference_controllers
 
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
-    if args.episodes < 1:
-        raise InvalidInputError(f"--episodes {args.episodes}: must be >= 1")
+    if not 1 <= args.episodes <= MAX_EVAL_EPISODES:
+        raise InvalidInputError(f"--episodes {args.episodes}: valid 1 to {MAX_EVAL_EPISODES:,}")
+    if args.seed < 0:
+        raise InvalidInputError(f"--seed {args.seed}: must be >= 0")
     policy = ConstraintAwarePolicy.load(args.policy)
-    config = EnvConfig.from_dict(policy.card.get("env_config", {}))
-    results = {
-        name: evaluate(ctrl, config, episodes=args.episodes, seed=args.seed).to_dict()
-        for name, ctrl in reference_controllers(config).items()
-    }
-    results["policy"] = evaluate(
-        lambda obs, _f: policy.act_batch(obs), config, episodes=args.episodes, seed=args.seed
-    ).to_dict()
-    _print_metrics(results, human(args))
+    try:
+        trained = EnvConfig.from_dict(policy.card.get("env_config", {}))
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"the policy card's env_config: {exc}") from exc
+    standard = standard_config(policy.observation)
+
+    def run(config: EnvConfig) -> dict[str, Any]:
+        results = {
+            name: evaluate(ctrl, config, episodes=args.episodes, seed=args.seed).to_dict()
+            for name, ctrl in reference_controllers(config).items()
+        }
+        results["policy"] = evaluate(
+            lambda obs, _f: policy.act_batch(obs), config, episodes=args.episodes, seed=args.seed
+        ).to_dict()
+        return results
+
+    out = human(args)
+    same = trained == standard
+    training = run(trained)
+    _print_metrics(
+        training,
+        out,
+        "standard evaluation (the paper's environment, also the policy's training one)"
+        if same
+        else "training environment (the policy card's env_config)",
+    )
+    results: dict[str, Any] = {"training_environment": training}
+    if same:
+        results["standard_evaluation"] = training
+    else:
+        results["standard_evaluation"] = run(standard)
+        _print_metrics(
+            results["standard_evaluation"],
+            out,
+            "standard evaluation (the paper's environment: no resistance along the joint)",
+        )
+    card = policy.card.get("standard_evaluation")
+    if card is None and same:  # trained in the standard environment: its metrics are that
+        metrics = policy.card.get("metrics", {})
+        card = metrics.get("policy") if isinstance(metrics, dict) else None
+        if isinstance(card, dict):
+            card = {**card, "source": "the card's metrics: its training environment's"}
+    if isinstance(card, dict) and isinstance(card.get("mean_final_angle_deg"), int | float):
+        results["card_standard_evaluation"] = card
+        p95 = card.get("p95_final_angle_deg")
+        out.print(
+            Text(
+                f"the card's standard evaluation: mean {card['mean_final_angle_deg']:.2f} deg"
+                + (f", p95 {p95:.2f} deg" if isinstance(p95, int | float) else "")
+                + (f" ({card['source']})" if isinstance(card.get("source"), str) else "")
+            ),
+            soft_wrap=True,
+        )
     if args.json:
         write_json(results, args.json)
     return EXIT_OK
@@ -372,8 +435,9 @@ def _run_parser(p: argparse.ArgumentParser) -> None:
         default=[],
         metavar="KEY=VALUE",
         help="repeatable; any task or executor field: FIELD (TaskConfig, e.g. force_limit=40), "
-        "object.FIELD, hand.FIELD, executor.FIELD (e.g. executor.threshold=1); "
-        "an unknown key lists the valid ones",
+        "object.FIELD, hand.FIELD, executor.FIELD or executor.GROUP.FIELD (ExecutorConfig, "
+        "e.g. executor.threshold=1, executor.limits.force_limit=40, "
+        "executor.guards.predictive_force=false); an unknown key lists the valid ones",
     )
     _add_policy(p)
     out = p.add_argument_group("outputs (checked before the run starts)")
@@ -517,31 +581,40 @@ def cmd_view(args: argparse.Namespace) -> int:
 def _lfo_parser(p: argparse.ArgumentParser) -> None:
     from constraint_aware.control.controllers import CONTROLLERS
     from constraint_aware.lfo.demo import GRASP_TYPES
+    from constraint_aware.recognizer import METHODS
 
     p.add_argument("demo", help="demonstration .json (cap-demo/1) or a t,x,y,z .csv")
+    p.add_argument(
+        "--trajectory",
+        metavar="CSV",
+        help="a t,x,y,z[,qw,qx,qy,qz] CSV replacing the demonstration's own trajectory (a "
+        "demonstration's trajectory_csv may only name a file in its own folder)",
+    )
     _add_json(p, "the skill (and the execution's summary)")
     p.add_argument("--execute", action="store_true", help="run the skill on the simulated task")
     p.add_argument("--grasp", choices=GRASP_TYPES, help="override the force-exertion type")
-    p.add_argument("--controller", default="policy", choices=CONTROLLERS, help="for --execute")
-    p.add_argument("--seed", type=int, default=0, help="for --execute")
-    _add_robot(p, "that executes the skill (--execute)")
-    _add_policy(p)
-    p.add_argument("--record", metavar="PATH", help="the execution's run record (.json)")
-    seq = p.add_argument_group("the execution sequence (--execute)")
-    seq.add_argument(
+    run = p.add_argument_group("execution (with --execute only)")
+    run.add_argument(
+        "--controller",
+        choices=CONTROLLERS,
+        help=f"the direction controller (default: {LFO_CONTROLLER})",
+    )
+    run.add_argument("--seed", type=int, help="the simulated sensor's noise seed (default: 0)")
+    _add_robot(run, "that executes the skill", default="")
+    _add_policy(run)
+    run.add_argument("--record", metavar="PATH", help="the execution's run record (.json)")
+    run.add_argument(
         "--start",
-        default="home",
-        choices=("home", "at-grasp"),
-        help="home: see the object, reach, grasp, manipulate, release and return home; "
-        "at-grasp: the hand placed on the simulated handle (experiments)",
+        choices=LFO_STARTS,
+        help="home (default): see the object, reach, grasp, manipulate, release and return "
+        "home; at-grasp: the hand placed on the simulated handle (experiments)",
     )
-    seq.add_argument(
+    run.add_argument(
         "--recognizer",
-        default="cnn",
-        choices=("cnn", "geometric"),
-        help="the contact-points recognizer (--start home)",
+        choices=METHODS,
+        help=f"the contact-points recognizer with --start home (default: {LFO_RECOGNIZER})",
     )
-    seq.add_argument(
+    run.add_argument(
         "--video",
         metavar="PATH",
         help="render the execution offscreen: .gif (Pillow) or .mp4 (the 'video' extra)",
@@ -549,21 +622,62 @@ def _lfo_parser(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=cmd_lfo)
 
 
+#: cap lfo's execution flags: (flag, attribute); each one given without --execute is an error.
+LFO_EXECUTION_FLAGS = (
+    ("--controller", "controller"),
+    ("--seed", "seed"),
+    ("--robot", "robot"),
+    ("--policy", "policy"),
+    ("--record", "record"),
+    ("--start", "start"),
+    ("--recognizer", "recognizer"),
+    ("--video", "video"),
+)
+LFO_CONTROLLER = "policy"
+LFO_STARTS = ("home", "at-grasp")
+LFO_START = "home"
+LFO_RECOGNIZER = "cnn"
+
+
 def cmd_lfo(args: argparse.Namespace) -> int:
     from constraint_aware.lfo.demo import load
     from constraint_aware.lfo.infer import infer_skill
+    from constraint_aware.sim.embodiment import DEFAULT_ROBOT
 
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
     check_output(args.record, "--record", JSON_SUFFIXES, stdout=True)
+    given = [flag for flag, attr in LFO_EXECUTION_FLAGS if getattr(args, attr) not in (None, "")]
+    if given and not args.execute:  # never silently ignored
+        raise InvalidInputError(
+            f"{', '.join(given)} without --execute: {'it sets' if len(given) == 1 else 'they set'}"
+            " the execution; add --execute to run the skill"
+        )
+    if args.json == "-" and args.record == "-":
+        raise InvalidInputError("--json - and --record -: only one of them can go to stdout")
+    args.controller = args.controller or LFO_CONTROLLER
+    args.seed = 0 if args.seed is None else args.seed
+    args.robot = args.robot or DEFAULT_ROBOT
+    args.start = args.start or LFO_START
+    if args.recognizer is not None and args.start != "home":
+        raise InvalidInputError(
+            f"--recognizer with --start {args.start}: only the sequence from home sees the object"
+        )
+    if args.video is not None and args.start != "home":
+        raise InvalidInputError(
+            f"--video with --start {args.start}: the video shows the sequence from home"
+        )
+    args.recognizer = args.recognizer or LFO_RECOGNIZER
     if args.video:
         from constraint_aware.sim.render import check_video_path
 
         check_video_path(args.video)
-    out_console = human(args)
+    out_console = err_console if "-" in (args.json, args.record) else console
     policy = None
     if args.execute:
         from constraint_aware.sim.embodiment import parse_robot
 
+        if args.seed < 0:
+            raise InvalidInputError(f"--seed {args.seed}: must be >= 0")
         parse_robot(args.robot)  # before any work
     from constraint_aware.control.controllers import POLICY_CONTROLLERS
 
@@ -571,7 +685,7 @@ def cmd_lfo(args: argparse.Namespace) -> int:
         from constraint_aware.policy import ConstraintAwarePolicy
 
         policy = ConstraintAwarePolicy.load(args.policy)  # before any work
-    demo = load(args.demo)
+    demo = load(args.demo, trajectory=args.trajectory)
     skill = infer_skill(demo, grasp_override=args.grasp)
     out: dict[str, Any] = {"demo": str(args.demo), "skill": skill.to_dict()}
     _print_skill(skill, out_console)
@@ -905,7 +1019,8 @@ def _export_onnx_parser(p: argparse.ArgumentParser) -> None:
         type=int,
         default=10_000,
         metavar="N",
-        help="check ONNX Runtime against the numpy policy on N random observations (0: skip)",
+        help="check ONNX Runtime against the numpy policy on N random observations (0: skip; "
+        "at most 1,000,000)",
     )
     _add_json(p, "the model's path, metadata and parity")
     p.set_defaults(func=cmd_export_onnx)
@@ -916,8 +1031,12 @@ def cmd_export_onnx(args: argparse.Namespace) -> int:
 
     check_output(args.out, "OUT", (".onnx",))
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
-    if args.parity < 0:
-        raise InvalidInputError(f"--parity {args.parity}: must be >= 0")
+    from constraint_aware.export.onnx import MAX_PARITY_OBSERVATIONS
+
+    if not 0 <= args.parity <= MAX_PARITY_OBSERVATIONS:
+        raise InvalidInputError(
+            f"--parity {args.parity:,}: valid 0 (skip) to {MAX_PARITY_OBSERVATIONS:,} observations"
+        )
     require_extra("onnx", "onnx", "cap export-onnx")
     if args.parity:
         require_extra("onnxruntime", "onnx", "the parity check (--parity 0 skips it)")
@@ -1039,6 +1158,74 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
     return EXIT_OK if ok else EXIT_FAILED
 
 
+# --- cap calibrate ----------------------------------------------------------------------------
+def _calibrate_parser(p: argparse.ArgumentParser) -> None:
+    from constraint_aware.control.calibrate import CalibrationConfig
+
+    p.add_argument("task", choices=_task_names(), help="the simulated task whose handle is held")
+    _add_robot(p, "to calibrate")
+    p.add_argument("--seed", type=int, default=0, help="the sensor noise's seed")
+    p.add_argument(
+        "--noise", type=float, default=0.1, metavar="N", help="the simulated sensor noise [N]"
+    )
+    p.add_argument("--name", help="the robot's name in the profile (default: the robot spec)")
+    p.add_argument("--out", metavar="PATH", help="write the robot profile here (.json)")
+    specs = add_dataclass_flags(p.add_argument_group("calibration"), CalibrationConfig)
+    p.add_argument("--json", metavar="PATH", help="the profile as JSON ('-' = stdout)")
+    p.set_defaults(func=cmd_calibrate, calibration_specs=specs)
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from constraint_aware.control.calibrate import CalibrationConfig, calibrate
+    from constraint_aware.control.profile import QUANTITIES
+    from constraint_aware.control.simulate import RunSpec, grasped
+
+    check_output(args.out, "--out", JSON_SUFFIXES)
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    if not (math.isfinite(args.noise) and args.noise >= 0):
+        raise InvalidInputError(f"--noise {args.noise}: must be finite and >= 0 [N]")
+    spec = RunSpec(task=args.task, seed=args.seed, robot=args.robot, sensor_noise=args.noise)
+    chosen = collect(args, args.calibration_specs)
+    task, sim = grasped(spec)
+    # the calibration's force limit stays below the object's own
+    chosen.setdefault("force_limit", min(CalibrationConfig.force_limit, task.force_limit))
+    config = CalibrationConfig(**chosen)
+    name = args.name if args.name is not None else args.robot
+    try:
+        profile = calibrate(sim, name, task.workplane_normal, config, setup=args.task)
+    except BaseException as exc:  # write what was measured, then report (Ctrl-C: 130)
+        return report_partial(exc, "robot_profile", args.json, "the calibration")
+    out = human(args)
+    table = Table(
+        title=Text(
+            f"{name} holding {args.task}: {profile.outcome}, {profile.periods} periods "
+            f"({profile.robot_time:.1f} s of robot time)"
+        )
+    )
+    for column in ("quantity", "value", "+-", "unit", "samples", "why not measured"):
+        table.add_column(column, justify="left" if column[0] in "qwu" else "right")
+    for key, m in profile.quantities.items():
+        shown = "-" if m.value is None else f"{m.value:.4g}"
+        error = "-" if m.uncertainty is None else f"{m.uncertainty:.2g}"
+        table.add_row(key, shown, error, m.unit, str(m.count), m.reason)
+    out.print(table)
+    out.print(Text("how each was measured: the profile's 'method' fields"), soft_wrap=True)
+    out.print(Text(f"sensor convention: {profile.convention or 'not judged'}"), soft_wrap=True)
+    for note in profile.notes:
+        out.print(Text(f"note: {note}"), soft_wrap=True)
+    if args.out:
+        try:
+            profile.save(args.out)
+        except OSError as exc:
+            raise CapError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
+        out.print(Text(f"wrote {args.out}"), soft_wrap=True)
+    if args.json:
+        write_json(profile.to_dict(), args.json)
+    assert set(profile.quantities) == set(QUANTITIES)
+    wrong = profile.convention in ("flipped_sign", "inconsistent")
+    return EXIT_OK if profile.outcome == "complete" and not wrong else EXIT_FAILED
+
+
 # --- parser -----------------------------------------------------------------------------------
 COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
     "bench": ("reproduce the paper's experiments as a report", _bench_parser),
@@ -1057,6 +1244,11 @@ COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
         _check_sensor_parser,
     ),
     "export-onnx": ("the policy as an ONNX model for C++ controllers", _export_onnx_parser),
+    "calibrate": (
+        "measure a robot's force noise, stiffness, tracking time constant, grasp play and "
+        "sensor convention through the Robot protocol, into a robot profile",
+        _calibrate_parser,
+    ),
 }
 
 

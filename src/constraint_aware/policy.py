@@ -3,7 +3,7 @@
 A policy file is a pair: `NAME.npz` (the MLP's weights, float32, no pickle) and `NAME.json`
 (the card: observation layout, inputs it needs from the robot, training config, seed, metrics,
 library versions). Two policies ship with the package (`POLICY_NAMES`): `default`, trained with
-the object's own resistance along the joint (issue 9), and `paper`, the faithful reproduction
+the object's own resistance along the joint, and `paper`, the faithful reproduction
 of the paper's policy (trained without it, assumption 3).
 
 Both are validated at load: every problem raises `PolicyFileError` naming the file and field.
@@ -21,8 +21,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from constraint_aware import deadband
-from constraint_aware.errors import InvalidInputError, PolicyFileError, UnknownNameError
+from constraint_aware.deadband import MIN_THRESHOLD, NOISE_SIGMAS
+from constraint_aware.errors import (
+    InvalidInputError,
+    PolicyFileError,
+    UnknownNameError,
+    check_number,
+)
 from constraint_aware.geometry import FloatArray, as_vector, normalize_force, update_direction_rule
 
 CARD_FORMAT = "constraint-aware-policy/1"
@@ -34,7 +39,7 @@ _CURRENT = (
     "direction_y",
     "direction_z",
 )
-#: The paper's observation (F/|F|, d): also the layout of cards written before issue 9.
+#: The paper's observation (F/|F|, d): also the layout of cards that name no layout.
 OBSERVATION_LAYOUT = _CURRENT
 #: Observation layouts by name. "history" adds the previous step's (F/|F|, d) (zeros at the
 #: first step); "magnitude" adds |F| / (k*delta), the force over the robot's step force (zero
@@ -62,17 +67,21 @@ MAGNITUDE_CLIP = 3.0
 POLICY_NAMES = ("default", "paper")
 DEFAULT_POLICY_NAME = "default"
 #: [N] default dead band of `update_direction`: deadband.py's floor (the training threshold).
-DEFAULT_THRESHOLD = deadband.MIN_THRESHOLD
+DEFAULT_THRESHOLD = MIN_THRESHOLD
 _MAX_LAYERS = 16
 _MAX_WIDTH = 4096
+#: A policy's files are read as untrusted input: the card and the weights (uncompressed) are
+#: bounded before they are read. The shipped networks take under 1 MB.
+MAX_CARD_BYTES = 16 * 2**20
+MAX_WEIGHT_BYTES = 256 * 2**20
 
 
 def dead_band_card() -> dict[str, Any]:
     """The card's `dead_band` entry: deadband.py's rule, which update_direction, the executor
     and the card share (no hand-set threshold)."""
     return {
-        "floor_N": deadband.MIN_THRESHOLD,
-        "noise_sigmas": deadband.NOISE_SIGMAS,
+        "floor_N": MIN_THRESHOLD,
+        "noise_sigmas": NOISE_SIGMAS,
         "rule": "max(floor_N, noise_sigmas * per-axis std of the F_d samples) [N]; "
         "update_direction's default is floor_N",
     }
@@ -131,6 +140,10 @@ class DirectionUpdater:
     ) -> FloatArray:
         """The next motion direction d_{t+1} (3,) from a raw wrist force and d_t (paper 3.4.2).
 
+        Every argument is checked: a vector that is not 3 finite real numbers, or whose norm
+        overflows, and a threshold or step force that is not a finite number in range raise
+        InvalidInputError naming the argument.
+
         force: (3,) [N] measured force F_s, world frame; force_offset: (3,) [N] F_d recorded
         after grasping (default zero); F = F_s - F_d. threshold [N]: the dead band (default
         `deadband.MIN_THRESHOLD`; a robot passes `deadband.threshold_from_noise` of its F_d
@@ -147,18 +160,18 @@ class DirectionUpdater:
         (the defaults) the network's action is used as it is, as in the paper.
         """
         p = self.policy
-        f = as_vector(force, "force")
-        d = as_vector(direction, "direction")
+        f = _vector(force, "force")
+        d = _vector(direction, "direction")
         if force_offset is not None:
-            f = f - as_vector(force_offset, "force_offset")
+            f = _finite_norm(f - _vector(force_offset, "force_offset"), "force - force_offset")
         normal = None
         if workplane_normal is not None:
-            normal = as_vector(workplane_normal, "workplane_normal")
-        thr = p.threshold if threshold is None else float(threshold)
-        if not np.isfinite(thr) or thr < 0:
-            raise InvalidInputError(f"threshold: must be finite and >= 0 [N], got {threshold}")
-        if step_force is not None and not (np.isfinite(step_force) and step_force > 0):
-            raise InvalidInputError(f"step_force: must be finite and > 0 [N], got {step_force}")
+            normal = _vector(workplane_normal, "workplane_normal")
+        thr = p.threshold
+        if threshold is not None:
+            thr = check_number("threshold", threshold, low=0, unit="N")
+        if step_force is not None:
+            step_force = check_number("step_force", step_force, low=0, low_open=True, unit="N")
         norm_d = float(np.linalg.norm(d))
         if norm_d < 1e-9:
             raise InvalidInputError("direction: must be a non-zero vector")
@@ -296,6 +309,12 @@ class ConstraintAwarePolicy:
         n = card["n_layers"]
         layers: list[tuple[FloatArray, FloatArray]] = []
         try:
+            with zipfile.ZipFile(npz_path) as archive:  # sizes before anything is inflated
+                total = sum(info.file_size for info in archive.infolist())
+            if total > MAX_WEIGHT_BYTES:
+                raise PolicyFileError(
+                    f"{npz_path}: {total:,} bytes of weights; at most {MAX_WEIGHT_BYTES:,}"
+                )
             with np.load(npz_path, allow_pickle=False) as data:
                 for i in range(n):
                     for key in (f"w{i}", f"b{i}"):
@@ -353,8 +372,36 @@ class ConstraintAwarePolicy:
         return npz_path
 
     # --- inference ------------------------------------------------------------------------
-    def act_batch(self, obs: FloatArray) -> FloatArray:
-        """Deterministic actions for observations (N, n_in): (N, 3), clipped to [-1, 1]."""
+    def act_batch(self, obs: ArrayLike) -> FloatArray:
+        """Deterministic actions for observations (N, n_in): (N, 3), clipped to [-1, 1].
+
+        obs: (N, n_in) finite real numbers, n_in = len(observation_layout); anything else
+        raises InvalidInputError naming `obs` (a NaN row never yields a NaN action)."""
+        return self._forward(self.check_observations(obs))
+
+    def check_observations(self, obs: ArrayLike) -> FloatArray:
+        """`obs` as an (N, n_in) float array, checked: real, finite, the layout's width."""
+        width = len(self.observation_layout)
+        if np.iscomplexobj(obs):
+            raise InvalidInputError("obs: complex values; expected real numbers")
+        try:
+            arr = np.asarray(obs, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise InvalidInputError(f"obs: not a numeric array ({exc})") from exc
+        if arr.ndim != 2 or arr.shape[1] != width:
+            raise InvalidInputError(
+                f"obs: expected shape (N, {width}) (observation {self.observation!r}: "
+                f"{', '.join(self.observation_layout)}), got {arr.shape}"
+            )
+        if not np.all(np.isfinite(arr)):
+            rows = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+            raise InvalidInputError(
+                f"obs: NaN or inf in {rows.size} row(s), the first at row {int(rows[0])}"
+            )
+        return arr
+
+    def _forward(self, obs: FloatArray) -> FloatArray:
+        """The network on checked observations (N, n_in): (N, 3) in [-1, 1]."""
         h = obs
         last = len(self._weights) - 1
         for i, (w, b) in enumerate(zip(self._weights, self._biases, strict=True)):
@@ -370,12 +417,18 @@ class ConstraintAwarePolicy:
         extra: the layout's further inputs (zeros when not given).
         Raises InvalidInputError (a ValueError) naming the argument on NaN, inf or bad shape.
         """
-        f = as_vector(force_unit, "force_unit")
-        d = as_vector(direction, "direction")
+        f = _vector(force_unit, "force_unit")
+        d = _vector(direction, "direction")
         rest = np.zeros(len(self.observation_layout) - 6)
-        rest[: len(extra)] = np.asarray(extra, dtype=float)[: rest.size]
+        if len(extra) > rest.size:
+            raise InvalidInputError(
+                f"extra: {len(extra)} values, but observation {self.observation!r} takes "
+                f"{rest.size} beyond (F/|F|, d): {', '.join(self.observation_layout[6:])}"
+            )
+        for i, x in enumerate(extra):
+            rest[i] = check_number(f"extra[{i}] ({self.observation_layout[6 + i]})", x)
         obs = np.concatenate([f, d, rest])[None, :]
-        return self.act_batch(obs)[0]
+        return self._forward(obs)[0]
 
     def session(self) -> DirectionUpdater:
         """A fresh per-run updater (holds the previous step for history observations)."""
@@ -418,8 +471,30 @@ class ConstraintAwarePolicy:
         return dict(self.card.get("metrics", {}))
 
 
+def _vector(value: ArrayLike, name: str) -> FloatArray:
+    """`value` as (3,) finite real floats whose norm is finite; InvalidInputError naming `name`
+    otherwise (a complex value would lose its imaginary part, an overflowing norm would turn
+    the vector into an unrelated direction)."""
+    if np.iscomplexobj(value):
+        raise InvalidInputError(f"{name}: complex values; expected 3 real numbers")
+    return _finite_norm(as_vector(value, name), name)
+
+
+def _finite_norm(vector: FloatArray, name: str) -> FloatArray:
+    with np.errstate(over="ignore"):
+        norm = float(np.linalg.norm(vector))
+    if not (np.all(np.isfinite(vector)) and math.isfinite(norm)):
+        raise InvalidInputError(
+            f"{name}: its norm overflows ({vector.tolist()}); expected a physical value"
+        )
+    return vector
+
+
 def _read_card(path: Path) -> dict[str, Any]:
     """The JSON card, checked field by field; PolicyFileError names the file and field."""
+    size = path.stat().st_size
+    if size > MAX_CARD_BYTES:
+        raise PolicyFileError(f"{path}: {size:,} bytes; a card has at most {MAX_CARD_BYTES:,}")
     try:
         text = path.read_bytes().decode("utf-8")
     except UnicodeDecodeError as exc:

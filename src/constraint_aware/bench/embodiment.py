@@ -32,8 +32,10 @@ from constraint_aware.sim.tasks import TASKS
 
 CONTROLLERS = ("policy", "classical", "projection", "fixed")
 ROBOTS = ("hook-hand", "jaco")
-STIFFNESS_LEVELS = (500.0, 1000.0, 2000.0, 5000.0, 20000.0)  # [N/m]
-PERIOD_LEVELS = (0.05, 0.1, 0.2)  # [s] nominal control periods
+#: Variant levels inside every embodiment's advertised range (sim.embodiment.VARIANT_RANGES;
+#: benchmarks/robot_variants.py measures the ranges and beyond)
+STIFFNESS_LEVELS = (700.0, 1000.0, 2000.0, 4000.0)  # [N/m]
+PERIOD_LEVELS = (0.06, 0.1, 0.2)  # [s] nominal control periods
 LOW_THRESHOLD = 0.4  # [N] the dead band measured beside the executor's default
 
 

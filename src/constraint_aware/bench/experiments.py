@@ -18,7 +18,12 @@ from constraint_aware.bench.sweep import PAPER_OFFSETS, run_many, success_table,
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.policy import ConstraintAwarePolicy, is_shipped, shipped_log_path
-from constraint_aware.sim.embodiment import DEFAULT_ROBOT, ROBOT_PARAMS, parse_robot
+from constraint_aware.sim.embodiment import (
+    DEFAULT_ROBOT,
+    ROBOT_PARAMS,
+    VARIANT_RANGES,
+    parse_robot,
+)
 from constraint_aware.sim.tasks import TASKS
 
 CONTROLLERS = ("policy", "classical", "projection", "fixed")
@@ -36,7 +41,7 @@ class BenchConfig:
     sensitivity_seeds: int = 3
     render: bool = True  # snapshots of the paper's drawer scenes
     robot: str = DEFAULT_ROBOT  # embodiment of the paper's experiments, the suite, the offset
-    # map and the sensitivity: a robot spec (sim.embodiment), e.g. "jaco:stiffness=5000"
+    # map and the sensitivity: a robot spec (sim.embodiment), e.g. "jaco:stiffness=2000"
 
     def __post_init__(self) -> None:
         parse_robot(self.robot)  # an unknown embodiment or variant names the valid ones
@@ -56,7 +61,7 @@ class BenchConfig:
 
 def robot_variant(robot: str, **params: float) -> str:
     """The robot spec `robot` with variant parameters set (`ROBOT_PARAMS` keys), as text:
-    robot_variant("jaco:period=0.05", stiffness=500) == "jaco:stiffness=500,period=0.05"."""
+    robot_variant("jaco:period=0.2", stiffness=800) == "jaco:stiffness=800,period=0.2"."""
     spec = parse_robot(robot)
     for key in params:
         if key not in ROBOT_PARAMS:
@@ -241,6 +246,14 @@ class Factor:
     levels: tuple[float, ...]
     tasks: tuple[str, ...]
 
+    def levels_on(self, robot: str) -> tuple[float, ...]:
+        """The levels run on `robot`: the wrist stiffness of a robot other than the default is
+        its `stiffness` variant, run only inside that robot's advertised range."""
+        if self.name != "wrist stiffness" or robot == DEFAULT_ROBOT:
+            return self.levels
+        low, high = VARIANT_RANGES[parse_robot(robot).name]["stiffness"]
+        return tuple(level for level in self.levels if low <= level <= high)
+
     def spec(
         self, task: str, ctrl: str, level: float, seed: int, robot: str = DEFAULT_ROBOT
     ) -> RunSpec:
@@ -295,7 +308,7 @@ def sensitivity_cells(cfg: BenchConfig) -> dict[RunSpec, list[tuple[str, str, st
     for f in FACTORS:
         for task in f.tasks:
             for ctrl in CONTROLLERS:
-                for level in f.levels:
+                for level in f.levels_on(cfg.robot):
                     for seed in range(cfg.sensitivity_seeds):
                         s = f.spec(task, ctrl, _scaled(f, task, level), seed, cfg.robot)
                         cells.setdefault(s, []).append((f.name, task, ctrl, level))
@@ -315,11 +328,12 @@ def sensitivity(
             rows.setdefault(key, []).append(r["summary"])
     out: dict[str, Any] = {}
     for f in FACTORS:
-        entry: dict[str, Any] = {"unit": f.unit, "levels": list(f.levels), "tasks": {}}
+        levels = f.levels_on(cfg.robot)
+        entry: dict[str, Any] = {"unit": f.unit, "levels": list(levels), "tasks": {}}
         for task in f.tasks:
             for ctrl in CONTROLLERS:
                 succ, peaks, finals = [], [], []
-                for level in f.levels:
+                for level in levels:
                     cell = rows[(f.name, task, ctrl, level)]
                     succ.append(float(np.mean([x["success"] for x in cell])))
                     peaks.append(float(np.median([x["peak_force_N"] for x in cell])))

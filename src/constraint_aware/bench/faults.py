@@ -277,7 +277,7 @@ def run_fault(
     """One run of the policy on `task` with `fault` injected; classified (module docstring).
     lag: the robot reports lag(sim) as its `tracking_time_constant` [s] (None: whatever the
     simulator reports)."""
-    hold_periods = ExecutorConfig().offset_samples - 1
+    hold_periods = ExecutorConfig().timing.offset_samples - 1
     robots: list[FaultyRobot] = []
 
     def wrap(sim: Any) -> FaultyRobot:

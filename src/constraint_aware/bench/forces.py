@@ -439,8 +439,8 @@ def run_variant(
         ctrl = VARIANTS[variant](policy, rate, normal)
     record = Executor(sim, ctrl, cfg, monitor=sim).run(d0, {"task": cond.task})
     stiffness, _ = reported_stiffness(sim)  # as the executor takes it
-    if cfg.stiffness is not None:  # measured by the probe
-        stiffness = cfg.stiffness
+    if cfg.robot.stiffness is not None:  # measured by the probe
+        stiffness = cfg.robot.stiffness
     step_force = None if stiffness is None else stiffness * cfg.step_length
     label = variant + SETTLED_SUFFIX if settled else variant
     return diagnose(record, cond, label, seed, normal, path_turn, step_force)

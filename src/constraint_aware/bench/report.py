@@ -76,6 +76,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
     header = _policy_and_robot(meta)
     if header:
         add(header)
+    for line in results.get("skipped", {}).values():  # sections `cap bench` could not run here
+        add(f"**Skipped**: {line}.\n")
 
     # 1. learning
     le = results["learning"]
@@ -101,7 +103,7 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
 
     study = le.get("observation_study")
     if study:
-        add("### Why this observation (issue 9's study, recorded in the policy's card)\n")
+        add("### Why this observation (the observation study, recorded in the policy's card)\n")
         add(
             "| observation | standard mean [deg] | with resistance mean [deg] | "
             "probe worst [deg] | closed loop successes | median peak [N] | mean F [N] |\n"

@@ -1,4 +1,9 @@
-"""`cap bench`: run the experiments, write results.json, draw the figures, write the report."""
+"""`cap bench`: run the experiments, write results.json, draw the figures, write the report.
+
+Before anything runs, `preflight` checks what each section needs beyond the core install (the
+Jaco's models for the embodiment section): a section that cannot run is skipped, said on
+stderr at the start and in the report, instead of failing at the end of a long run.
+"""
 
 from __future__ import annotations
 
@@ -6,7 +11,10 @@ import dataclasses
 import hashlib
 import json
 import math
+import sys
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -15,9 +23,11 @@ import numpy as np
 from constraint_aware.bench import endtoend, placement
 from constraint_aware.bench import experiments as ex
 from constraint_aware.bench.analysis import policy_section
+from constraint_aware.bench.embodiment import ROBOTS as EMBODIMENT_ROBOTS
 from constraint_aware.bench.embodiment import for_bench as embodiment_for_bench
 from constraint_aware.bench.faults import FAULTS, QUICK_FAULTS, fault_suite
 from constraint_aware.bench.figures import draw_all
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.report import write_report
 from constraint_aware.bench.sweep import (
     SUITE_OFFSET_RANGE,
@@ -27,12 +37,109 @@ from constraint_aware.bench.sweep import (
 )
 from constraint_aware.errors import CapError
 from constraint_aware.policy import ConstraintAwarePolicy, is_shipped
-from constraint_aware.sim.embodiment import DEFAULT_ROBOT
+from constraint_aware.sim.embodiment import DEFAULT_ROBOT, parse_robot
 from constraint_aware.sim.tasks import TASKS, task_config
 
 RESULTS = "results.json"
 #: `cap bench --quick` injects the reduced fault set on these tasks (the full bench: all).
 FAULT_BENCH_TASKS_QUICK = ("drawer-opening", "door-opening")
+#: The extra that installs everything a complete bench needs (pyproject.toml).
+BENCH_EXTRA = "bench"
+#: The bench's sections in run order (results.json keys) and their report titles.
+SECTIONS: dict[str, str] = {
+    "learning": "training",
+    "paper": "the paper's experiments",
+    "headline": "the randomized suite",
+    "embodiment": "embodiments",
+    "placement": "placement",
+    "heatmap": "the offset map",
+    "sensitivity": "sensitivity",
+    "policy_section": "policies",
+    "faults": "fault injection",
+}
+
+
+@dataclass(frozen=True)
+class Need:
+    """Something a section needs beyond the core install, and the extra that installs it."""
+
+    what: str  # what is needed, in words ("dm-control's Kinova Jaco models")
+    extra: str  # the optional-dependencies extra of pyproject.toml that installs it
+    available: Callable[[], bool]  # whether it is installed here (cheap: no model is built)
+
+    def install(self) -> str:
+        """The command that installs it, as one phrase."""
+        return (
+            f"pip install 'constraint-aware[{self.extra}]' "
+            f"(in a source checkout: pip install -e '.[{self.extra}]')"
+        )
+
+
+def _jaco_models_installed() -> bool:
+    from constraint_aware.sim.jaco import jaco_model_dir
+
+    try:
+        jaco_model_dir()
+    except CapError:
+        return False
+    return True
+
+
+#: What an embodiment needs beyond the core install (one not listed needs nothing more).
+ROBOT_NEEDS: dict[str, Need] = {
+    "jaco": Need("dm-control's Kinova Jaco models", BENCH_EXTRA, _jaco_models_installed),
+}
+
+
+def _robot_needs(*robots: str) -> tuple[Need, ...]:
+    names = dict.fromkeys(parse_robot(r).name for r in robots)
+    return tuple(ROBOT_NEEDS[n] for n in names if n in ROBOT_NEEDS)
+
+
+def section_needs(cfg: ex.BenchConfig) -> dict[str, tuple[Need, ...]]:
+    """What each section of a bench with `cfg` needs beyond the core install (in run order;
+    the offset map and the sensitivity only in a full bench)."""
+    on_robot = _robot_needs(cfg.robot)
+    needs: dict[str, tuple[Need, ...]] = {
+        "learning": (),
+        "paper": on_robot,
+        "headline": on_robot,
+        "embodiment": _robot_needs(*EMBODIMENT_ROBOTS),
+        "placement": (),
+        "heatmap": on_robot,
+        "sensitivity": on_robot,
+        "policy_section": (),
+        "faults": (),
+    }
+    if cfg.quick:
+        del needs["heatmap"], needs["sensitivity"]
+    return needs
+
+
+def preflight(cfg: ex.BenchConfig) -> dict[str, str]:
+    """The sections that cannot run here, each with one line saying what to install.
+
+    The robot of the paper's experiments (`cfg.robot`) was asked for explicitly: when it cannot
+    run, CapError (before any run), since nothing of the paper's experiments would be left.
+    """
+    for need in _robot_needs(cfg.robot):
+        if not need.available():
+            raise CapError(f"--robot {cfg.robot}: needs {need.what}: {need.install()}")
+    skipped: dict[str, str] = {}
+    for section, needs in section_needs(cfg).items():
+        missing = [n for n in needs if not n.available()]
+        if missing:
+            skipped[section] = (
+                f"the {SECTIONS[section]} section needs "
+                + ", ".join(n.what for n in missing)
+                + ": "
+                + "; ".join(dict.fromkeys(n.install() for n in missing))
+            )
+    return skipped
+
+
+def _to_stderr(line: str) -> None:
+    print(f"cap bench: skipping: {line}", file=sys.stderr, flush=True)
 
 
 def _summaries_with_units(paper: dict[str, Any]) -> dict[str, Any]:
@@ -143,6 +250,7 @@ def run_bench(
     scheduler: str | None = None,
     policy: str | Path | None = None,
     robot: str = DEFAULT_ROBOT,
+    on_skip: Callable[[str], None] = _to_stderr,
 ) -> Path:
     """Run everything (quick: the paper's experiments with few seeds) into `out`.
 
@@ -157,18 +265,23 @@ def run_bench(
     scheduler: a Dask scheduler's address, or "local" for a cluster of `workers` processes on
     this machine; the sweeps' runs then go to that cluster (through its client's executor) and
     `workers` is its thread count. The results do not depend on it.
-    Everything is validated before any run or connection.
+    Everything is validated before any run or connection; `preflight` decides which sections
+    are skipped, and `on_skip` receives its line for each before anything runs (default: to
+    stderr); results.json lists them under "skipped" and the report names them.
     """
     loaded = ConstraintAwarePolicy.load(policy)
     cfg = ex.BenchConfig.for_mode(quick, workers, robot)
     check_out_dir(Path(out), force)
+    skipped = preflight(cfg)
+    for line in skipped.values():
+        on_skip(line)
     if scheduler is None:
-        return _run_bench(out, cfg, loaded, policy)
+        return _run_bench(out, cfg, loaded, policy, skipped)
     with (
         dask_executor(scheduler, local_workers=workers) as (executor, threads),
         use_executor(executor),
     ):
-        return _run_bench(out, dataclasses.replace(cfg, workers=threads), loaded, policy)
+        return _run_bench(out, dataclasses.replace(cfg, workers=threads), loaded, policy, skipped)
 
 
 def _run_bench(
@@ -176,6 +289,7 @@ def _run_bench(
     cfg: ex.BenchConfig,
     policy: ConstraintAwarePolicy,
     source: str | Path | None,
+    skipped: dict[str, str],
 ) -> Path:
     start = time.perf_counter()
     quick = cfg.quick
@@ -203,7 +317,8 @@ def _run_bench(
                 "prismatic_offset_deg": SUITE_OFFSET_RANGE["prismatic"],
                 "revolute_offset_deg": SUITE_OFFSET_RANGE["revolute"],
             },
-        }
+        },
+        "skipped": skipped,
     }
     results["learning"] = ex.learning(out_dir, policy, source)
     results["paper"] = _summaries_with_units(
@@ -218,7 +333,8 @@ def _run_bench(
         "table": table,
         "peak_force_samples": ex.peak_force_samples(suite_runs),
     }
-    results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds, policy).to_dict()
+    if "embodiment" not in skipped:
+        results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds, policy).to_dict()
     all_runs = list(suite_runs)
     results["placement"] = placement.bench_section(quick, policy)
     results["end_to_end"] = endtoend.bench_section(quick, policy)
@@ -241,7 +357,7 @@ def _run_bench(
         w["sensor_bias_magnitude_N"] = float(np.linalg.norm(w["sensor_bias_N"]))
     results["worst_cases"] = worst
     results["meta"]["wall_time_s"] = time.perf_counter() - start
-    (out_dir / RESULTS).write_text(json.dumps(results, indent=1) + "\n")
+    write_results(out_dir / RESULTS, results)
     return replot(out_dir)
 
 

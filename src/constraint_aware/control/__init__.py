@@ -4,6 +4,7 @@ The simulated run (`constraint_aware.control.simulate`) is imported from its mod
 brings in the simulator.
 """
 
+from constraint_aware.control.calibrate import CalibrationConfig, calibrate
 from constraint_aware.control.controllers import (
     CONTROLLERS,
     POLICY_CONTROLLERS,
@@ -11,10 +12,16 @@ from constraint_aware.control.controllers import (
     DirectionController,
     make_controller,
 )
-from constraint_aware.control.executor import (
-    Executor,
+from constraint_aware.control.executor import Executor, command_jump_bound
+from constraint_aware.control.executor_config import (
     ExecutorConfig,
-    command_jump_bound,
+    GoalConfig,
+    GuardsConfig,
+    LimitsConfig,
+    RobotOverrides,
+    SelfCheckConfig,
+    TimingConfig,
+    TorquePolicyConfig,
     max_grasp_play,
 )
 from constraint_aware.control.probe import (
@@ -24,29 +31,44 @@ from constraint_aware.control.probe import (
     probe_sensor,
     probed_settings,
 )
+from constraint_aware.control.profile import Measurement, RobotProfile
 from constraint_aware.control.record import OUTCOME_MEANINGS, OUTCOMES, RunRecord, StepRecord
 from constraint_aware.control.robot import Pose, Robot, TaskMonitor, Wrench, reported_stiffness
+from constraint_aware.control.run_inputs import INPUT_NAMES, INPUT_SOURCES
 from constraint_aware.control.settings import Settings, parse_settings
 
 __all__ = [
     "CONTROLLERS",
+    "INPUT_NAMES",
+    "INPUT_SOURCES",
     "OUTCOMES",
     "OUTCOME_MEANINGS",
     "POLICY_CONTROLLERS",
     "PROBE_VERDICTS",
+    "CalibrationConfig",
     "ControlInput",
     "DirectionController",
     "Executor",
     "ExecutorConfig",
+    "GoalConfig",
+    "GuardsConfig",
+    "LimitsConfig",
+    "Measurement",
     "Pose",
     "ProbeConfig",
     "ProbeResult",
     "Robot",
+    "RobotOverrides",
+    "RobotProfile",
     "RunRecord",
+    "SelfCheckConfig",
     "Settings",
     "StepRecord",
     "TaskMonitor",
+    "TimingConfig",
+    "TorquePolicyConfig",
     "Wrench",
+    "calibrate",
     "command_jump_bound",
     "make_controller",
     "max_grasp_play",

@@ -47,17 +47,14 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.control.executor import (
-    SELF_CHECK_MIN_FORCE,
-    ExecutorConfig,
-    max_grasp_play,
-)
+from constraint_aware.control.executor_config import ExecutorConfig, max_grasp_play
 from constraint_aware.control.robot import (
     Robot,
     reported_stiffness,
     reported_time_constant,
     request_hold,
 )
+from constraint_aware.control.self_check import MIN_FORCE as SELF_CHECK_MIN_FORCE
 from constraint_aware.errors import ConfigError, check_int, check_number, check_unit_vector
 from constraint_aware.geometry import FloatArray, in_plane
 from constraint_aware.spatial import Pose
@@ -559,15 +556,15 @@ def grasp_play(
 
 
 def probed_settings(probed: ProbeResult, config: ExecutorConfig) -> dict[str, float]:
-    """The ExecutorConfig fields a setup probe measured, for `dataclasses.replace(config,
-    **...)`: the arm stiffness the wrist sees and the grasp's play (capped at the executor's
-    bound for `config`'s step, `max_grasp_play`), when the wrench convention holds; none
-    otherwise."""
+    """The ExecutorConfig fields a setup probe measured, for `config.with_overrides(**...)`:
+    the arm stiffness the wrist sees (`robot__stiffness`) and the grasp's play
+    (`robot__grasp_play`, capped at the executor's bound for `config`'s step,
+    `max_grasp_play`), when the wrench convention holds; none otherwise."""
     if probed.verdict not in STIFFNESS_VERDICTS or not probed.arm_stiffness:
         return {}
-    out = {"stiffness": probed.arm_stiffness}
+    out = {"robot__stiffness": probed.arm_stiffness}
     if probed.play is not None:
-        out["grasp_play"] = min(probed.play, max_grasp_play(config.step_length))
+        out["robot__grasp_play"] = min(probed.play, max_grasp_play(config.step_length))
     return out
 
 

@@ -11,30 +11,34 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.control.robot import TaskMonitor
+from constraint_aware.geometry import angle_deg
 
 #: Every way a run ends, with what it means. Safety stops come before `success` each step: a
 #: run whose reading is above the force limit or whose sensors fail is never a success.
 OUTCOME_MEANINGS: dict[str, str] = {
-    "success": "the goal (ExecutorConfig.goal_travel / goal_rotation) or the task monitor's "
+    "success": "the goal (ExecutorConfig.goal.travel / goal.rotation) or the task monitor's "
     "success was reached",
     "force_limit": "|F| read above the force limit, or the next step was refused because its "
     "predicted force would pass it",
     "grasp_lost": "the task monitor saw the hand slip off or separate (simulation)",
-    "contact_lost": "no hand-object contact for lost_contact_steps steps",
+    "contact_lost": "no hand-object contact for guards.lost_contact_steps steps",
     "nan": "the wrench reading (or F_d) was not finite",
     "bad_pose": "the pose reading was not finite or jumped further than the hand can move, "
-    "for pose_fault_steps steps in a row",
+    "for guards.pose_fault_steps steps in a row; or the robot's commanded pose was not finite "
+    "at the start (nothing to hold)",
     "bad_command": "the command would have been non-finite or jumped beyond the bound (not sent)",
-    "not_following": "the target led the measured pose by more than max_lead for "
-    "follow_patience steps, or the arm's deflection (less the lag the robot reports as its "
+    "not_following": "the target led the measured pose by more than guards.max_lead for "
+    "guards.follow_patience steps, or the arm's deflection (less the lag the robot reports as its "
     "tracking_time_constant) implies much more force than the sensor reads (robot frozen, "
     "e-stopped or its setpoint clamped; or a sensor reading low)",
-    "stale_wrench": "the same wrench sample was read stale_steps times in a row",
+    "stale_wrench": "the same wrench sample was read guards.stale_steps times in a row",
     "sensor_noise": "the F_d samples were so noisy that the derived dead band reached the "
     "force limit",
     "sensor_convention": "the first moves contradict the wrench convention (flipped sign or "
     "rotated sensor frame), or a setup probe found it wrong (control.probe; no move made)",
-    "timeout": "max_steps moves made without success",
+    "timeout": "limits.max_steps moves made without success",
+    "aborted": "start() was called again before the run ended: this run was ended, the robot "
+    "told to hold, and the new run started",
     "error": "an exception ended the run (the reason holds its text); the record is attached "
     "to the exception as `run_record`",
 }
@@ -60,6 +64,38 @@ class StepRecord:
     rotation_rate: float | None  # torque policy's w [rad/step]
 
 
+def measured_step(
+    step: int,
+    direction: np.ndarray,
+    force: np.ndarray,
+    force_norm: float,
+    torque: np.ndarray,
+    hand: np.ndarray,
+    monitor: TaskMonitor | None,
+    rotation_rate: float | None,
+) -> StepRecord:
+    """The record of one step: d_t (3,), F (3,) [N] and |F| [N], the torque (3,) [N m], the
+    hand's position (3,) [m] (NaN when untrusted), the torque policy's w [rad/step], and what
+    the task `monitor` knows (simulation ground truth; NaN/None without one)."""
+    truth = monitor.admissible_direction() if monitor is not None else None
+    slip = monitor.slip() if monitor is not None else (math.nan, math.nan)
+    return StepRecord(
+        step=step,
+        direction=direction.tolist(),
+        force=force.tolist(),
+        force_norm=force_norm,
+        torque=torque.tolist(),
+        hand_position=hand.tolist(),
+        handle_position=monitor.handle_position().tolist() if monitor is not None else None,
+        admissible_direction=truth.tolist() if truth is not None else None,
+        angle_deg=float(angle_deg(direction, truth)) if truth is not None else math.nan,
+        progress=monitor.progress() if monitor is not None else math.nan,
+        slip_m=slip[0],
+        slip_deg=slip[1],
+        rotation_rate=rotation_rate,
+    )
+
+
 @dataclass
 class RunRecord:
     """One run. `outcome` is "running" until finished, then one of OUTCOMES."""
@@ -77,6 +113,10 @@ class RunRecord:
     threshold: float = math.nan  # [N] the dead band used (configured or derived from F_d)
     goal: dict[str, Any] | None = None  # the executor's own goal: kind, value, reached
     notes: list[str] = field(default_factory=list)  # what the executor decided on its own
+    # each run input (control.run_inputs.INPUT_NAMES): {"value": ..., "source": ...}
+    inputs: dict[str, dict[str, Any]] = field(default_factory=dict)
+    # each stage the controller declares: "active" or "off: missing <input>[, <input>]"
+    stages: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def start(

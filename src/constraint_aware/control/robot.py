@@ -11,6 +11,10 @@ from __future__ import annotations
 import math
 from typing import Protocol
 
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from constraint_aware.errors import InvalidInputError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.spatial import Pose, Wrench
 
@@ -19,6 +23,9 @@ __all__ = [
     "Robot",
     "TaskMonitor",
     "Wrench",
+    "checked_pose",
+    "checked_vector",
+    "checked_wrench",
     "reported_stiffness",
     "reported_time_constant",
     "request_hold",
@@ -171,3 +178,57 @@ def _positive_report(robot: object, name: str, unit: str) -> tuple[float | None,
     if math.isfinite(value) and value > 0:
         return value, ""
     return None, f"ignored {name} {raw!r} (valid: finite, > 0 {unit})"
+
+
+# --- readings handed to the executor: types and shapes are checked, values are not ----------
+# A non-finite value is a sensor fault, which the executor's guards handle (a named stop); a
+# wrong type or shape is an integration error, which raises InvalidInputError naming it.
+
+
+def checked_vector(value: object, name: str, *, finite: bool = False) -> FloatArray:
+    """`value` as a real float64 array of shape (3,); InvalidInputError naming `name` for any
+    other type, shape or dtype (complex, bool, text, objects), and with `finite` for NaN/inf."""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as exc:  # e.g. ragged nested sequences
+        raise InvalidInputError(f"{name}: not a numeric array ({exc})") from exc
+    if arr.dtype.kind not in "iuf":
+        what = "complex" if arr.dtype.kind == "c" else f"of dtype {arr.dtype}"
+        raise InvalidInputError(f"{name}: expected 3 real numbers, got values {what}: {value!r}")
+    if arr.shape != (3,):
+        raise InvalidInputError(f"{name}: expected shape (3,), got {arr.shape}")
+    out = arr.astype(np.float64)
+    if finite and not np.all(np.isfinite(out)):
+        raise InvalidInputError(f"{name}: contains NaN or inf: {value!r}")
+    return out
+
+
+def checked_wrench(value: object, name: str = "wrench") -> Wrench:
+    """`value` as a Wrench of real (3,) float arrays; InvalidInputError naming `name` (or
+    `name.force`, `name.torque`) otherwise. Non-finite values pass (a sensor fault)."""
+    if not isinstance(value, Wrench):
+        raise InvalidInputError(
+            f"{name}: expected a Wrench (force (3,) [N], torque (3,) [N m]), got "
+            f"{type(value).__name__}"
+        )
+    force = checked_vector(value.force, f"{name}.force")
+    torque = checked_vector(value.torque, f"{name}.torque")
+    return Wrench(force, torque)
+
+
+def checked_pose(value: object, name: str = "pose") -> Pose:
+    """`value` as a Pose with a real (3,) float position and a single scipy Rotation;
+    InvalidInputError naming `name` (or `name.position`, `name.orientation`) otherwise.
+    Non-finite values pass (a sensor fault)."""
+    if not isinstance(value, Pose):
+        raise InvalidInputError(
+            f"{name}: expected a Pose (position (3,) [m], orientation: a scipy Rotation), got "
+            f"{type(value).__name__}"
+        )
+    position = checked_vector(value.position, f"{name}.position")
+    orientation = value.orientation
+    if not isinstance(orientation, Rotation) or not orientation.single:
+        raise InvalidInputError(
+            f"{name}.orientation: expected a single scipy Rotation, got {orientation!r}"
+        )
+    return Pose(position, orientation)

@@ -3,7 +3,9 @@
 Keys:
 - `object.FIELD` (ObjectConfig: `object.frictionloss=2`, `object.radius=0.08`),
 - `hand.FIELD` (HandConfig: `hand.translational_stiffness=8000`),
-- `executor.FIELD` (ExecutorConfig: `executor.threshold=1`, `executor.goal_travel=0.2`),
+- `executor.FIELD` (a top-level ExecutorConfig field: `executor.threshold=1`) and
+  `executor.GROUP.FIELD` (a field of one of its groups: `executor.limits.force_limit=40`,
+  `executor.goal.travel=0.2`, `executor.guards.predictive_force=false`),
 - `FIELD` (a top-level TaskConfig field: `force_limit=40`, `max_steps=80`).
 
 Values: `true`/`false`, `none`/`null`, integers, floats (`1e-3`, `nan` is rejected by the
@@ -18,7 +20,7 @@ import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from constraint_aware.control.executor import ExecutorConfig
+from constraint_aware.control.executor_config import override_keys
 from constraint_aware.errors import InvalidInputError, UnknownNameError
 from constraint_aware.sim.hand import HandConfig
 from constraint_aware.sim.objects import ObjectConfig
@@ -34,7 +36,8 @@ Value = object
 
 @dataclass(frozen=True)
 class Settings:
-    """Parsed `--set` items: `TaskConfig.with_overrides` keys and ExecutorConfig fields."""
+    """Parsed `--set` items: `TaskConfig.with_overrides` keys and `ExecutorConfig.with_overrides`
+    keys (`threshold`, `limits__force_limit`)."""
 
     task_overrides: tuple[tuple[str, Value], ...] = ()
     executor_overrides: tuple[tuple[str, Value], ...] = ()
@@ -52,7 +55,7 @@ def valid_keys() -> list[str]:
     keys = [k for k in field_names(TaskConfig) if k not in _NESTED]
     keys += [f"object.{k}" for k in field_names(ObjectConfig)]
     keys += [f"hand.{k}" for k in field_names(HandConfig)]
-    keys += [f"executor.{k}" for k in field_names(ExecutorConfig)]
+    keys += [f"executor.{k.replace('__', '.')}" for k in override_keys()]
     return keys
 
 
@@ -100,9 +103,11 @@ def parse_settings(items: Sequence[str]) -> Settings:
                 raise UnknownNameError("setting", key, valid_keys())
             task[key] = value
         elif prefix == "executor":
-            if name not in field_names(ExecutorConfig):
-                raise UnknownNameError("setting", key, valid_keys())
-            executor[name] = value
+            override = name.replace(".", "__")
+            if "__" in name or override not in override_keys():
+                executor_keys = [k for k in valid_keys() if k.startswith("executor.")]
+                raise UnknownNameError("setting", key, executor_keys)
+            executor[override] = value
         elif prefix in _NESTED:
             cls = ObjectConfig if prefix == "object" else HandConfig
             if name not in field_names(cls):

@@ -16,7 +16,14 @@ from constraint_aware.control.controllers import (
     driving_policy,
     make_controller,
 )
-from constraint_aware.control.executor import Executor, ExecutorConfig, orient_normal
+from constraint_aware.control.executor import Executor
+from constraint_aware.control.executor_config import (
+    ExecutorConfig,
+    LimitsConfig,
+    TorquePolicyConfig,
+    override_keys,
+)
+from constraint_aware.control.motion import orient_normal
 from constraint_aware.control.probe import (
     CONVENTION_VERDICTS,
     ProbeConfig,
@@ -73,7 +80,9 @@ class NoisySensorSim(ManipulationSim):
         )
 
 
-#: `RunSpec.overrides` keys with this prefix set ExecutorConfig fields (`executor__threshold`).
+#: `RunSpec.overrides` keys with this prefix set ExecutorConfig fields (`executor__threshold`,
+#: `executor__limits__force_limit`: the key after the prefix is an
+#: `ExecutorConfig.with_overrides` key).
 EXECUTOR_PREFIX = "executor__"
 
 
@@ -90,14 +99,14 @@ class RunSpec:
     sensor_noise: float = 0.1  # [N] std of the force reading per axis
     sensor_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)  # [N]
     overrides: tuple[tuple[str, object], ...] = ()  # task parameter overrides, and
-    # ExecutorConfig fields as `executor__FIELD`
+    # ExecutorConfig fields as `executor__FIELD` or `executor__GROUP__FIELD`
     controller_params: tuple[tuple[str, float], ...] = ()  # e.g. classical gains
     robot: str = DEFAULT_ROBOT  # embodiment spec (sim.embodiment): "hook-hand", "jaco",
     # optionally with variants: "jaco:stiffness=5000,period=0.05"
     probe: bool = False  # probe at setup (control.probe) on a twin of this task (same
     # robot, object, grasp and seed), then run on a fresh grasp: the arm stiffness measured
     # at the wrist replaces the robot's report (kept, with a note, when the probe cannot
-    # measure it), the grasp's measured play goes to ExecutorConfig.grasp_play
+    # measure it), the grasp's measured play goes to ExecutorConfig.robot.grasp_play
     # (`probed_settings`), and a probe that finds the wrench convention wrong stops the run
     # before it moves (`sensor_convention`). On a real arm: probe, re-grasp, run. Probing
     # the object and then running without re-grasping disturbs the grasp
@@ -105,7 +114,7 @@ class RunSpec:
 
     def with_settings(self, settings: Settings) -> RunSpec:
         """This spec with `--set` settings (control.settings.parse_settings) added: task
-        overrides as they are, ExecutorConfig fields as `executor__FIELD` overrides."""
+        overrides as they are, ExecutorConfig fields as `executor__KEY` overrides."""
         executor = tuple((EXECUTOR_PREFIX + k, v) for k, v in settings.executor_overrides)
         return dataclasses.replace(
             self, overrides=(*self.overrides, *settings.task_overrides, *executor)
@@ -113,7 +122,7 @@ class RunSpec:
 
     @property
     def executor_overrides(self) -> dict[str, object]:
-        """The ExecutorConfig fields set through `executor__FIELD` overrides."""
+        """The `ExecutorConfig.with_overrides` keys set through `executor__KEY` overrides."""
         n = len(EXECUTOR_PREFIX)
         return {k[n:]: v for k, v in self.overrides if k.startswith(EXECUTOR_PREFIX)}
 
@@ -135,25 +144,26 @@ class RunSpec:
         for pair in (*self.overrides, *self.controller_params):
             if not (isinstance(pair, tuple) and len(pair) == 2 and isinstance(pair[0], str)):
                 raise ConfigError(n + "overrides", pair, "(name, value) pairs")
-        executor_fields = [f.name for f in dataclasses.fields(ExecutorConfig)]
+        executor_keys = override_keys()
         for name in self.executor_overrides:
-            if name not in executor_fields:
-                raise UnknownNameError("executor setting", name, executor_fields)
+            if name not in executor_keys:
+                valid = [EXECUTOR_PREFIX + k for k in executor_keys]
+                raise UnknownNameError("executor override", EXECUTOR_PREFIX + name, valid)
         parse_robot(self.robot)  # an unknown embodiment or variant names the valid ones
 
 
 def executor_config(task: TaskConfig, torque_policy: bool | None = None) -> ExecutorConfig:
     """The executor's settings for a task, from what a demonstration would tell (LfO)."""
     use_torque = task.fixed_orientation if torque_policy is None else torque_policy
+    revolute = task.constraint_type == "revolute"
     return ExecutorConfig(
         constraint_type=task.constraint_type,  # type: ignore[arg-type]
         workplane_normal=task.workplane_normal,
-        force_limit=task.force_limit,
-        max_steps=task.max_steps,
-        torque_policy=use_torque and task.constraint_type == "revolute",
-        rotation_radius=task.object.radius if task.constraint_type == "revolute" else None,
+        limits=LimitsConfig(force_limit=task.force_limit, max_steps=task.max_steps),
+        torque_policy=TorquePolicyConfig(enabled=bool(use_torque) and revolute),
+        rotation_radius=task.object.radius if revolute else None,
         # revolute: the executor orients the workplane normal from the hinge's side
-        hinge_point=task.object.position if task.constraint_type == "revolute" else None,
+        hinge_point=task.object.position if revolute else None,
     )
 
 
@@ -211,7 +221,7 @@ def probed_config(spec: RunSpec, config: ExecutorConfig) -> ExecutorConfig:
     probed, _twin = probe(spec)
     if probed.verdict in CONVENTION_VERDICTS:
         raise RuntimeError(f"the setup probe found {probed.verdict}: {probed.reason}")
-    return dataclasses.replace(config, **probed_settings(probed, config))  # type: ignore[arg-type]
+    return config.with_overrides(**probed_settings(probed, config))
 
 
 def _probe_config(task: TaskConfig) -> ProbeConfig:
@@ -226,8 +236,13 @@ def controller_geometry(
     """What a direction controller is given besides the force: the workplane normal (3,),
     oriented from the hinge on revolute joints so that moving along d0 (3,) turns positively
     about it (the classical controller and controller "policy" turn about this axis), and the
-    rotation rate w_d = v_d / r [rad/s] on revolute joints with a known radius (else None)."""
-    assert cfg.workplane_normal is not None
+    rotation rate w_d = v_d / r [rad/s] on revolute joints with a known radius (else None).
+    Raises ConfigError naming ExecutorConfig.workplane_normal when it is None (3-D motion:
+    no axis to turn about; `run` then gives the controller neither)."""
+    if cfg.workplane_normal is None:
+        raise ConfigError(
+            "ExecutorConfig.workplane_normal", None, "a vector (the controllers' rotation axis)"
+        )
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     if cfg.constraint_type == "revolute" and cfg.hinge_point is not None:
         normal = orient_normal(normal, d0, robot.read_pose().position, cfg.hinge_point)
@@ -267,17 +282,21 @@ def run(
     cfg = executor_config(task, spec.torque_policy)
     changes = {**spec.executor_overrides, **(executor_overrides or {})}
     if changes:
-        cfg = dataclasses.replace(cfg, **changes)  # type: ignore[arg-type]
+        cfg = cfg.with_overrides(**changes)
     if probed is not None:  # what the probe measured, unless set explicitly
         measured = {k: v for k, v in probed_settings(probed, cfg).items() if k not in changes}
-        cfg = dataclasses.replace(cfg, **measured)  # type: ignore[arg-type]
-    assert cfg.workplane_normal is not None
-    normal = np.asarray(cfg.workplane_normal, dtype=float)
+        cfg = cfg.with_overrides(**measured)
+    # d0 turns about the executor's workplane normal; in 3-D motion (None) about the task's
+    axis = task.workplane_normal if cfg.workplane_normal is None else cfg.workplane_normal
     if initial_direction is not None:
         d0 = np.asarray(initial_direction, dtype=float)
     else:
-        d0 = rotate_about(sim.admissible_direction(), normal, math.radians(spec.offset_deg))
-    normal, rate = controller_geometry(cfg, sim, d0)
+        turn = math.radians(spec.offset_deg)
+        d0 = rotate_about(sim.admissible_direction(), np.asarray(axis, dtype=float), turn)
+    normal: FloatArray | None = None
+    rate: float | None = None
+    if cfg.workplane_normal is not None:  # 3-D motion: no rotation axis, no rotation rate
+        normal, rate = controller_geometry(cfg, sim, d0)
     ctrl = controller or make_controller(
         spec.controller, policy, rate, normal, dict(spec.controller_params)
     )
@@ -288,7 +307,7 @@ def run(
         "offset_deg": spec.offset_deg,
         "seed": spec.seed,
         "randomized": spec.randomize,
-        "torque_policy": cfg.torque_policy,
+        "torque_policy": cfg.torque_policy.enabled,
         "sensor_noise_N": spec.sensor_noise,
         "success_progress": task.success_progress,
         "constraint_type": task.constraint_type,

@@ -2,7 +2,7 @@
 
 - `constraint_aware/SingleSystem-v0`: the paper's training environment (one composite body on
   a prismatic joint); `gym.make_vec(..., vectorization_mode="vector_entry_point")` gives its
-  batched twin (`training.gym_vector.SingleSystemVectorEnv`, all episodes in one numpy batch).
+  batched twin (`envs.single_system_vector.SingleSystemVectorEnv`, all episodes in one numpy batch).
 - `constraint_aware/DrawerOpening-v0`, `PlateSliding-v0`, `PolePulling-v0`, `DoorOpening-v0`,
   `HandleRotating-v0`: the five simulated tasks, one executor control period per step
   (`envs.task.TaskEnv`; its docstring is the manual).
@@ -35,7 +35,7 @@ def register_envs() -> None:
         gym.register(
             id=SINGLE_SYSTEM_ID,
             entry_point="constraint_aware.envs.single_system:SingleSystemGymEnv",
-            vector_entry_point="constraint_aware.training.gym_vector:SingleSystemVectorEnv",
+            vector_entry_point="constraint_aware.envs.single_system_vector:SingleSystemVectorEnv",
         )
     for task, env_id in TASK_ENV_IDS.items():
         if env_id not in gym.registry:

@@ -2,19 +2,24 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from numpy.typing import ArrayLike
 
 from constraint_aware.control.controllers import ControlInput, project_on_plane
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.simulate import executor_config, simulated_robot
 from constraint_aware.envs.single_system import check_render_mode
-from constraint_aware.errors import InvalidInputError
+from constraint_aware.errors import (
+    ConfigError,
+    InvalidInputError,
+    check_int,
+    check_number,
+)
 from constraint_aware.geometry import FloatArray, rotate_about, unit
 from constraint_aware.sim.embodiment import DEFAULT_ROBOT, Embodiment, parse_robot
 from constraint_aware.sim.tasks import TaskConfig, randomized, task_config
@@ -22,6 +27,8 @@ from constraint_aware.spatial import Pose, Wrench
 
 RENDER_MODES: tuple[str, ...] = ("rgb_array",)
 TIMEOUT = "timeout"  # the executor's outcome for max_steps: a truncation, not a termination
+#: [px] the largest frame: the scene's offscreen buffer (sim/scene.py sets 640 x 480)
+MAX_WIDTH, MAX_HEIGHT = 640, 480
 
 
 class _ActionController:
@@ -72,6 +79,9 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     Action (3,) in [-1, 1]: the next direction d_{t+1} (world frame). The executor normalizes
         it and projects it on the task's workplane; a zero action, or one along the workplane
         normal, keeps d_t. `(F/|F|, d)` from the observation is what the paper's policy reads.
+        An action that is not 3 finite real numbers (NaN, inf, a wrong shape, text) raises
+        InvalidInputError naming it before anything moves (Gymnasium's convention for an
+        invalid action); the episode is left as it was.
     Reward: the period's progress as a fraction of the task's goal (a successful episode
         collects about 1) minus |F| / force_limit / max_steps (constraint force, as the
         training reward penalizes it; at most 1 over a whole episode held at the limit).
@@ -89,18 +99,22 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
     Keywords (gym.make(id, ...)):
         task_config: any `TaskConfig` (e.g. `sim.tasks.task_config("door-opening",
             object__mass=3)`) instead of the registered task's preset;
-        offset_deg: initial direction error about the workplane normal [deg]: a number, or
-            (low, high) for |offset| ~ U(low, high) with a random sign (default 30);
+        offset_deg: initial direction error about the workplane normal [deg]: a number in
+            [-180, 180], or (low, high) with 0 <= low <= high < 180 for
+            |offset| ~ U(low, high) with a random sign (default 30);
         randomize: draw friction, mass and damping per episode (sim.tasks.randomized);
-        sensor_noise: [N] std of the force reading per axis (default 0.1, as `cap run`);
+        sensor_noise: [N] std of the force reading per axis, >= 0 (default 0.1, as `cap run`);
         torque_policy: None (on exactly for fixed-orientation grasps), True or False;
-        executor: ExecutorConfig fields to override (e.g. {"threshold": 2.0});
+        executor: ExecutorConfig fields to override, as `ExecutorConfig.with_overrides` keys
+            (e.g. {"threshold": 2.0, "limits__max_steps": 80});
         robot: the embodiment, a robot spec (sim.embodiment): "hook-hand" (default), "jaco"
             (the Kinova Jaco arm and hand), optionally with variants,
-            "jaco:stiffness=5000,period=0.05"; an unknown name or variant fails at
+            "jaco:stiffness=2000,period=0.2"; an unknown name or variant fails at
             construction, naming the valid ones;
         render_mode: None or "rgb_array" (offscreen MuJoCo, sim.render.SceneRenderer),
-            width and height [px] of the frames.
+            width (1-640) and height (1-480) [px] of the frames.
+    Every keyword is checked at construction, as `RunSpec` checks `cap run`'s: a wrong type or
+    a value out of range raises ConfigError naming it and its valid range.
     Randomness comes only from `self.np_random` (seed it with `reset(seed=...)`).
     """
 
@@ -120,35 +134,42 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         width: int = 480,
         height: int = 360,
     ) -> None:
+        n = "TaskEnv."
         check_render_mode(render_mode, RENDER_MODES)
+        if task_config is not None and not isinstance(task_config, TaskConfig):
+            raise ConfigError(
+                n + "task_config", task_config, "a TaskConfig (sim.tasks.task_config)"
+            )
+        if not isinstance(task, str):
+            raise ConfigError(n + "task", task, "a task name")
         self._base = task_config if task_config is not None else _preset(task)
+        if not isinstance(randomize, bool | np.bool_):
+            raise ConfigError(n + "randomize", randomize, "True or False")
+        if torque_policy is not None and not isinstance(torque_policy, bool | np.bool_):
+            raise ConfigError(n + "torque_policy", torque_policy, "True, False or None")
         if randomize and task_config is not None:
             raise InvalidInputError(
                 "randomize draws from a named task's preset; not with task_config"
             )
-        if isinstance(offset_deg, tuple | list):
-            low, high = (float(v) for v in offset_deg)
-            if not 0.0 <= low <= high < 180.0:
-                raise InvalidInputError(
-                    f"offset_deg range ({low}, {high}): need 0 <= low <= high < 180"
-                )
-        elif not math.isfinite(float(offset_deg)):
-            raise InvalidInputError(f"offset_deg {offset_deg!r}: must be finite")
-        if not (math.isfinite(sensor_noise) and sensor_noise >= 0):
-            raise InvalidInputError(f"sensor_noise {sensor_noise!r} [N]: must be >= 0")
+        self.offset_deg = _check_offset(offset_deg)
+        self.sensor_noise = check_number(n + "sensor_noise", sensor_noise, low=0, unit="N")
+        if not isinstance(robot, str):
+            raise ConfigError(n + "robot", robot, "a robot spec such as 'jaco:stiffness=2000'")
         parse_robot(robot)  # UnknownNameError / InvalidInputError naming the valid ones
+        self.width = _check_pixels(n + "width", width, MAX_WIDTH)
+        self.height = _check_pixels(n + "height", height, MAX_HEIGHT)
+        if executor is not None and not isinstance(executor, dict):
+            raise ConfigError(n + "executor", executor, "a dict of ExecutorConfig fields")
+        self.executor_overrides = dict(executor or {})
+        base_cfg = executor_config(self._base, torque_policy)
         self.robot = robot
         self.task_name = self._base.name
-        self.offset_deg = offset_deg
-        self.randomize = randomize
-        self.sensor_noise = float(sensor_noise)
+        self.randomize = bool(randomize)
         self.torque_policy = torque_policy
-        self.executor_overrides = dict(executor or {})
-        self.executor_config = dataclasses.replace(
-            executor_config(self._base, torque_policy), **self.executor_overrides
-        )  # built once here so that invalid overrides fail at construction
+        # built once here so that invalid overrides fail at construction (an unknown key
+        # raises UnknownNameError listing the valid ones)
+        self.executor_config = base_cfg.with_overrides(**self.executor_overrides)
         self.render_mode = render_mode
-        self.width, self.height = width, height
         vec = gym.spaces.Box(-np.inf, np.inf, (3,), np.float64)
         self.observation_space = gym.spaces.Dict(  # type: ignore[assignment]
             {
@@ -178,15 +199,12 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         cfg = (
             self.executor_config
             if not self.randomize
-            else dataclasses.replace(
-                executor_config(task, self.torque_policy), **self.executor_overrides
-            )
+            else executor_config(task, self.torque_policy).with_overrides(**self.executor_overrides)
         )
-        assert cfg.workplane_normal is not None
+        # d0 turns about the executor's workplane normal; in 3-D motion (None) about the task's
+        axis = task.workplane_normal if cfg.workplane_normal is None else cfg.workplane_normal
         offset = self._draw_offset(rng)
-        d0 = rotate_about(
-            sim.admissible_direction(), np.asarray(cfg.workplane_normal), math.radians(offset)
-        )
+        d0 = rotate_about(sim.admissible_direction(), np.asarray(axis), math.radians(offset))
         self._close_renderer()
         self.sim = sim
         self._controller = _ActionController()
@@ -196,7 +214,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
             "controller": self._controller.name,
             "offset_deg": offset,
             "randomized": self.randomize,
-            "torque_policy": cfg.torque_policy,
+            "torque_policy": cfg.torque_policy.enabled,
             "sensor_noise_N": self.sensor_noise,
             "success_progress": task.success_progress,
             "constraint_type": task.constraint_type,
@@ -206,7 +224,9 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         }
         self._record = self.executor.start(d0, label)
         # F_d sampling holds the hand; it ends with the first move (along d0)
-        for _ in range(cfg.offset_samples + cfg.max_steps):  # bounded: the executor stops
+        for _ in range(
+            cfg.timing.offset_samples + cfg.limits.max_steps
+        ):  # bounded: the executor stops
             if self._controller.calls > 0:
                 break
             out = self.executor.step(sim.read_wrench(), sim.read_pose())
@@ -227,8 +247,9 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         if record.finished:  # ended already (also possible during reset): nothing moves
             truncated = record.outcome == TIMEOUT
             return self._observation(), 0.0, not truncated, truncated, self._info()
+        checked = _check_action(action)  # before anything moves
         before = self.sim.progress()
-        self._controller.action = np.asarray(action, dtype=float)
+        self._controller.action = checked
         out = self.executor.step(*self._reading)
         if not isinstance(out, RunRecord):
             self.sim.command_pose(out)
@@ -239,7 +260,7 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
         force_norm = float(np.linalg.norm(obs["wrench"][:3]))
         reward = (self.sim.progress() - before) / self.sim.task.success_progress
         if math.isfinite(force_norm):
-            reward -= force_norm / cfg.force_limit / cfg.max_steps
+            reward -= force_norm / cfg.limits.force_limit / cfg.limits.max_steps
         finished = record.finished
         truncated = finished and record.outcome == TIMEOUT
         return obs, float(reward), finished and not truncated, truncated, self._info()
@@ -315,3 +336,47 @@ class TaskEnv(gym.Env[dict[str, np.ndarray], np.ndarray]):
 
 def _preset(task: str) -> TaskConfig:
     return task_config(task)
+
+
+def _check_pixels(field: str, value: object, high: int) -> int:
+    """A frame size [px]: an integer in [1, high] (the offscreen buffer's size)."""
+    valid = f"an integer in [1, {high}] [px]"
+    try:
+        pixels = check_int(field, value, low=1)
+    except ConfigError:
+        raise ConfigError(field, value, valid) from None
+    if pixels > high:
+        raise ConfigError(field, value, valid)
+    return pixels
+
+
+def _check_offset(value: object) -> float | tuple[float, float]:
+    """TaskEnv's offset_deg: a number in [-180, 180] [deg], or a (low, high) range with
+    0 <= low <= high < 180 [deg]; ConfigError naming it otherwise."""
+    field = "TaskEnv.offset_deg"
+    if isinstance(value, tuple | list):
+        valid = "a (low, high) range with 0 <= low <= high < 180 [deg]"
+        if len(value) != 2:
+            raise ConfigError(field, value, valid)
+        low = check_number(field + "[0]", value[0], low=0, high=180, high_open=True, unit="deg")
+        high = check_number(field + "[1]", value[1], low=0, high=180, high_open=True, unit="deg")
+        if low > high:
+            raise ConfigError(field, value, valid)
+        return (low, high)
+    return check_number(field, value, low=-180, high=180, unit="deg")
+
+
+def _check_action(action: ArrayLike) -> FloatArray:
+    """The action as (3,) finite floats; InvalidInputError naming it otherwise (a diverged
+    policy's NaN must never be taken for "keep the direction")."""
+    if isinstance(action, str | bytes) or np.iscomplexobj(action):
+        raise InvalidInputError(f"action: expected 3 finite real numbers, got {action!r}")
+    try:
+        arr = np.asarray(action, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"action: expected 3 finite real numbers ({exc})") from exc
+    if arr.shape != (3,):
+        raise InvalidInputError(f"action: expected shape (3,), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InvalidInputError(f"action: contains NaN or inf ({arr.tolist()})")
+    return arr

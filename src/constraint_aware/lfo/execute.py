@@ -126,7 +126,7 @@ def execute(
     with the simulated object's truth.
 
     robot: the embodiment that executes it, a robot spec (sim.embodiment: "hook-hand", "jaco",
-    "jaco:stiffness=5000,period=0.05"); an unknown name or variant raises UnknownNameError or
+    "jaco:stiffness=2000,period=0.1"); an unknown name or variant raises UnknownNameError or
     InvalidInputError naming the valid ones, before anything is built.
     Raises CapError (UncertainEstimateError) before anything moves when the constraint is
     unknown or the estimates are too uncertain for the grasp (lfo/plausibility.py).
@@ -158,7 +158,7 @@ def execute(
         "controller": ctrl.name,
         "offset_deg": float(angle_deg(d0, truth_d)),
         "seed": seed,
-        "torque_policy": cfg.torque_policy,
+        "torque_policy": cfg.torque_policy.enabled,
         "sensor_noise_N": sensor_noise,
         "success_progress": task.success_progress,
         "constraint_type": task.constraint_type,

@@ -34,13 +34,12 @@ from constraint_aware.lfo.fitting import (
     outlier_mask,
 )
 from constraint_aware.lfo.lexicon import constraint_from_words, grasp_for
-from constraint_aware.lfo.plausibility import check_units, motion_sense_warning
+from constraint_aware.lfo.plausibility import MIN_PATH, check_units, motion_sense_warning
 
 GEOMETRY_RATIO = 0.35  # circle RMS / line RMS below this: an arc
 LINE_RATIO = 0.7  # circle RMS / line RMS above this: the circle explains nothing more
 LINE_RADIUS = 0.6  # [m] a line is conclusive when a hinge this large would visibly bend it
 MAX_RADIUS = 3.0  # [m] a fitted radius beyond this is a line
-MIN_PATH = 0.03  # [m] shorter demonstrations say nothing about the constraint
 
 
 class InferenceError(CapError, ValueError):
@@ -101,10 +100,15 @@ def classify_geometry(positions: FloatArray) -> tuple[dict[str, Any], CircleFit 
 
 def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> SkillParameters:
     """Skill parameters of one demonstration (raises InferenceError when none can be had, and
-    plausibility.UnitError when the positions are not in metres)."""
-    check_units(demo)
-    glitches = outlier_mask(demo.position)
-    pos, times = demo.position[~glitches], demo.t[~glitches]
+    plausibility.UnitError when the positions are not in metres or not in one unit).
+
+    Tracker glitches are removed before anything is fitted: gross ones (plausibility.py, named
+    in the warnings) and small ones (fitting.outlier_mask, counted in the evidence)."""
+    units = check_units(demo)
+    kept = np.flatnonzero(units.keep)
+    glitches = outlier_mask(demo.position[kept])
+    used = kept[~glitches]  # indices of the samples every fit uses
+    pos, times = demo.position[used], demo.t[used]
     travel = float(np.linalg.norm(pos.max(axis=0) - pos.min(axis=0)))
     if travel < MIN_PATH:
         raise InferenceError(
@@ -113,7 +117,7 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
         )
     words = constraint_from_words(demo.instruction, demo.object)
     geometry, circle = classify_geometry(pos)
-    warnings: list[str] = []
+    warnings: list[str] = list(units.notes)
     verdict = {"line": "prismatic", "arc": "revolute"}.get(geometry["verdict"])
     if verdict is not None:
         constraint = verdict
@@ -155,7 +159,7 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
     if grasp_override:
         grasp, source = grasp_override, "user override"
     if constraint != "revolute":
-        quats = None if demo.orientation is None else demo.orientation[~glitches]
+        quats = None if demo.orientation is None else demo.orientation[used]
         normal, plane_note = _prismatic_workplane(pos, grasp, quats)
         if plane_note:
             warnings.append(plane_note)
@@ -189,9 +193,10 @@ def infer_skill(demo: Demonstration, grasp_override: str | None = None) -> Skill
     start_dir, start_rms = initial_direction(pos, times)
     uncertainty["initial_direction_rms_m"] = start_rms
     geometry["start_segment_direction"] = start_dir.tolist()
-    geometry["glitches_removed"] = int(glitches.sum())
+    geometry["glitches_removed"] = int(glitches.sum()) + units.glitches
 
-    sense = motion_sense_warning(demo, direction, rest_end - rest_start, constraint)
+    start_quat = None if demo.orientation is None else demo.orientation[used[0]]
+    sense = motion_sense_warning(demo, direction, rest_end - rest_start, constraint, start_quat)
     if sense:
         warnings.append(sense)
     return SkillParameters(

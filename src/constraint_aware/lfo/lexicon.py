@@ -120,6 +120,23 @@ NOUN_KINDS: dict[str, str] = {
     "handle": "crank", "crank": "crank", "knob": "crank", "valve": "crank", "wheel": "crank",
 }  # fmt: skip
 
+#: How large each noun's motion is, to judge a demonstration's unit (lfo/plausibility.py):
+#: (what is measured, low, high [m]): the handle's travel on a slide or its radius about a
+#: hinge. The bounds are what the objects measure: drawers travel up to their full extension
+#: (~0.6 m for a deep one); a door's handle sits at most the widest leaves' 1.2 m from the
+#: hinge; gates are wider; cranks, knobs, valves and wheels are turned at 1-50 cm.
+NOUN_SIZES: dict[str, tuple[str, float, float]] = {
+    "drawer": ("travel", 0.05, 0.7), "sliding door": ("travel", 0.1, 1.5),
+    "plate": ("travel", 0.03, 1.0), "tray": ("travel", 0.03, 1.0),
+    "pole": ("travel", 0.03, 1.0), "rod": ("travel", 0.03, 1.0),
+    "slider": ("travel", 0.03, 1.0), "window": ("travel", 0.05, 1.5),
+    "door": ("radius", 0.1, 1.2), "gate": ("radius", 0.3, 2.5), "lid": ("radius", 0.1, 1.0),
+    "flap": ("radius", 0.05, 1.0), "lever": ("radius", 0.05, 1.0),
+    "handle": ("radius", 0.01, 0.5), "crank": ("radius", 0.01, 0.5),
+    "knob": ("radius", 0.01, 0.5), "valve": ("radius", 0.01, 0.5),
+    "wheel": ("radius", 0.01, 0.5),
+}  # fmt: skip
+
 #: Verbs that say which way the object moves: opening pulls the handle (toward the palm's back,
 #: against the palm normal) or raises it; closing pushes or lowers it.
 OPENING_VERBS = ("open", "pull out", "pull", "lift", "raise")

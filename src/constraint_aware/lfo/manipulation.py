@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.control.controllers import DirectionController, make_controller
-from constraint_aware.control.executor import ExecutorConfig
+from constraint_aware.control.executor_config import ExecutorConfig, GoalConfig
 from constraint_aware.control.simulate import RunSpec, executor_config
 from constraint_aware.lfo.infer import SkillParameters
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -67,10 +67,12 @@ def manipulation_setup(
             float(skill.workplane_normal[1]),
             float(skill.workplane_normal[2]),
         ),
-        torque_policy=bool(skill.fixed_orientation) and skill.constraint_type == "revolute",
+        torque_policy=dataclasses.replace(
+            base.torque_policy,
+            enabled=bool(skill.fixed_orientation) and skill.constraint_type == "revolute",
+        ),
         rotation_radius=radius,
-        goal_travel=goal_travel,
-        goal_rotation=goal_rotation,
+        goal=GoalConfig(travel=goal_travel, rotation=goal_rotation),
     )
     rate = None
     if cfg.constraint_type == "revolute" and radius:

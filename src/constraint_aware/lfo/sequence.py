@@ -403,7 +403,7 @@ def _run_phases(
     else:
         manipulation = _run_observed(executor, robot, d0, run_label, on_period)
     record.manipulation = manipulation
-    phase.periods = len(manipulation.steps) + exec_cfg.offset_samples
+    phase.periods = len(manipulation.steps) + exec_cfg.timing.offset_samples
     phase.peak_force = manipulation.peak_force
     phase.details.update(outcome=manipulation.outcome, steps=manipulation.n_steps)
     if not manipulation.success:

@@ -296,11 +296,25 @@ TASKS: dict[str, Callable[[], TaskConfig]] = {
 }
 
 
-def task_config(name: str, **overrides: Any) -> TaskConfig:
-    """The preset `name` with overrides; unknown names raise an error listing the valid ones."""
-    if name not in TASKS:
-        raise UnknownNameError("task", name, list(TASKS))
-    cfg = TASKS[name]()
+def task_config(preset: str | None = None, /, **overrides: Any) -> TaskConfig:
+    """The preset (`TASKS`) with overrides (`TaskConfig.with_overrides` keys).
+
+    The preset is the first argument, or `name=` when given alone. Unknown presets raise
+    UnknownNameError listing the valid ones; a preset given both ways raises InvalidInputError
+    naming `name` (rename a task with `.with_overrides(name=...)`)."""
+    if preset is None:
+        if "name" not in overrides:
+            raise InvalidInputError(f"task_config: name the preset ({', '.join(TASKS)})")
+        preset = overrides.pop("name")
+    elif "name" in overrides:
+        raise InvalidInputError(
+            f"task_config({preset!r}, name={overrides['name']!r}): name is the preset, "
+            "already given as the first argument; rename a task with "
+            "task_config(...).with_overrides(name=...)"
+        )
+    if not isinstance(preset, str) or preset not in TASKS:
+        raise UnknownNameError("task", str(preset), list(TASKS))
+    cfg = TASKS[preset]()
     return cfg.with_overrides(**overrides) if overrides else cfg
 
 

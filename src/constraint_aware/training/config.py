@@ -169,7 +169,7 @@ RESISTANCE: dict[str, Any] = {
 #: embodiment 2 (k*delta 5-200 N), so every robot of the bench is inside the training range.
 #: The analytic physics scales with k except for the absolute terms (the 0.2 N threshold, the
 #: up-to-1 N absolute dry friction), so the range costs little accuracy at 1000-3000 N/m
-#: (measured in benchmarks/results/default_policy.json).
+#: (measured in benchmarks/studies/results/default_policy.json).
 WIDE_STIFFNESS = (500.0, 20_000.0)
 
 

@@ -7,7 +7,6 @@ from typing import Any, Literal
 import gymnasium as gym
 import numpy as np
 
-from constraint_aware.envs import SINGLE_SYSTEM_ID
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.training.batch import ACT_DIM, SingleSystemBatch, observation_space
 from constraint_aware.training.config import EnvConfig
@@ -19,7 +18,6 @@ from constraint_aware.training.physics import (
 
 Backend = Literal["analytic", "mujoco"]
 BACKENDS: tuple[str, ...] = ("analytic", "mujoco")
-ENV_ID = SINGLE_SYSTEM_ID  # registered by constraint_aware.envs
 
 
 def make_force_model(backend: str, config: EnvConfig) -> ForceModel:
@@ -43,7 +41,7 @@ class SingleSystemEnv(gym.Env[np.ndarray, np.ndarray]):
     Each step the hand is commanded `step_length` along d from the body's pose; the body slides
     along u only, against Coulomb friction; the guide's force F on the body results.
 
-    Resistance (issue 9, `EnvConfig` documents the ranges): the object's own dry friction,
+    Resistance (`EnvConfig` documents the ranges): the object's own dry friction,
     damping, inertia and a released grasp preload along the joint; none by default.
 
     Observation: `config.observation` (policy.OBSERVATIONS), (F/|F|, d) in R^6 for the paper,
@@ -90,11 +88,3 @@ class SingleSystemEnv(gym.Env[np.ndarray, np.ndarray]):
         if done:
             info["final_angle_deg"] = info["angle_deg"]
         return obs[0].astype(np.float32), float(reward[0]), bool(done), False, info
-
-
-def register() -> None:
-    """Register ENV_ID (and the other environments) with Gymnasium; idempotent. Importing
-    `constraint_aware` already does it (constraint_aware.envs)."""
-    from constraint_aware.envs import register_envs
-
-    register_envs()

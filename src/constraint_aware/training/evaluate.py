@@ -1,4 +1,10 @@
-"""Standard evaluation: final angle and return of a batched controller on fresh episodes."""
+"""Evaluations of a batched controller on fresh episodes: final angle and return.
+
+The standard evaluation is `STANDARD_EPISODES` episodes from `STANDARD_SEED` in the paper's
+resistance-free environment (`standard_config`: `EnvConfig`'s defaults, with the policy's
+observation); a policy's card records it as `standard_evaluation`. An evaluation in another
+environment (the one a policy was trained in, with resistance) is not the standard one.
+"""
 
 from __future__ import annotations
 
@@ -12,6 +18,12 @@ from constraint_aware.training.reference import BatchController
 
 STANDARD_EPISODES = 10_000
 STANDARD_SEED = 12345
+
+
+def standard_config(observation: str) -> EnvConfig:
+    """The standard evaluation's environment: the paper's (EnvConfig's defaults, no resistance
+    along the joint) with `observation`, the layout the evaluated policy reads."""
+    return EnvConfig(observation=observation)
 
 
 @dataclass(frozen=True)

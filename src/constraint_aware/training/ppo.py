@@ -29,7 +29,6 @@ from stable_baselines3.common.torch_layers import MlpExtractor
 from stable_baselines3.common.utils import LinearSchedule
 from stable_baselines3.common.vec_env import VecEnv
 
-import constraint_aware
 from constraint_aware.errors import CapError, InvalidInputError, PolicyFileError, UnknownNameError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.policy import (
@@ -42,8 +41,9 @@ from constraint_aware.training.config import WIDE_STIFFNESS, EnvConfig, resistan
 from constraint_aware.training.evaluate import evaluate
 from constraint_aware.training.reference import reference_controllers
 from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
+from constraint_aware.version import __version__
 
-#: The observation of the default policy, chosen by benchmarks/observation_study.py: the
+#: The observation of the default policy, chosen by benchmarks/studies/observation_study.py: the
 #: magnitude with a flag for "step force known" (policy.OBSERVATIONS; the card's
 #: observation_study gives the reason and the numbers).
 DEFAULT_OBSERVATION = "magnitude_flag"
@@ -51,7 +51,7 @@ DEFAULT_OBSERVATION = "magnitude_flag"
 #: torch threads of the default preset. The 2x64 update is too small for intra-op threads to
 #: pay, and on a machine whose cores are busy a second thread waits at every op's barrier:
 #: under load 5-7 on 2 cores, 60k steps took 3.1 s with 1 thread and 64 s with 2
-#: (benchmarks/results/train_speed.json).
+#: (benchmarks/studies/results/train_speed.json).
 DEFAULT_TORCH_THREADS = 1
 
 #: The evaluations `TrainConfig.target_angle_deg` can apply to.
@@ -168,11 +168,11 @@ PRESETS: dict[str, TrainConfig] = {
     "fast": TrainConfig(),
     # The paper's reported values (5.1): batch 6000, learning rate 5e-5. The paper does not give
     # the minibatch; 60 divides 6000 and is closest to SB3's default of 64.
-    # The default policy (issue 9), in the environment with the object's own resistance
+    # The default policy: trained in the environment with the object's own resistance
     # (training.config.RESISTANCE), the observation chosen by the study, and k over
-    # WIDE_STIFFNESS. PPO settings from benchmarks/results/train_speed.json: the 2x256 update
-    # was 91 % of the wall time (env and evaluations the rest), so a 2x64 net with 5 epochs
-    # does ~4x the env steps per second and reaches the 3 deg target in fewer steps too; the
+    # WIDE_STIFFNESS. PPO settings from benchmarks/studies/results/train_speed.json: the 2x256
+    # update was 91 % of the wall time (env and evaluations the rest), so a 2x64 net with 5
+    # epochs does ~4x the env steps per second and reaches the 3 deg target in fewer steps; the
     # learning rate falls linearly to 0 over 3 M steps, so the last evaluations are not
     # limited by the step noise of a constant rate (standard evaluation 2.59 -> ~1.7 deg).
     "default": TrainConfig(
@@ -232,7 +232,7 @@ def export_policy(model: BaseAlgorithm, card: dict[str, Any]) -> ConstraintAware
 
 def library_versions() -> dict[str, str]:
     return {
-        "constraint_aware": constraint_aware.__version__,
+        "constraint_aware": __version__,
         "python": platform.python_version(),
         "numpy": np.__version__,
         "torch": torch.__version__,

@@ -1,13 +1,16 @@
 """Where the training time goes: PPO update vs env rollouts vs evaluations, per preset.
 
-    nice -n 10 python benchmarks/train_speed.py [--steps 120000] [--threads 1 2] [--json PATH]
+    nice -n 10 python benchmarks/studies/train_speed.py [--steps 120000] [--threads 1 2]
+        [--out PATH]
 
 Trains each configuration for a fixed number of env steps (no target) and times SB3's
 `collect_rollouts` (the batched numpy env + the policy's forward pass), `train` (the PPO
 update: minibatch forward/backward/Adam) and the evaluation callback separately. Configurations:
-the `default` preset as it was at stop 15 (2x256, 10 epochs) and today's, each at the given
-torch thread counts, interleaved so that they share the machine's load; the load average is
-recorded before and after. Ratios between configurations of one run are the figures to quote.
+`baseline` (the `default` preset before its smaller net: 2x256, 10 epochs, the same values as
+benchmarks/train_time.py's baseline; labelled `stop15_default` in the committed results) and
+today's `default`, each at the given torch thread counts, interleaved so that they share the
+machine's load; the load average is recorded before and after. Ratios between configurations
+of one run are the figures to quote. Writes JSON with provenance.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from typing import Any
 
 import torch
 
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.training import ppo
 from constraint_aware.training.config import resistance_config
 from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
@@ -30,8 +34,8 @@ from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
 OUT = Path(__file__).parent / "results" / "train_speed.json"
 
 
-def stop15_default() -> ppo.TrainConfig:
-    """The default preset of stop 15 (the same values as train_time.BASELINE_FLAGS)."""
+def baseline() -> ppo.TrainConfig:
+    """The `default` preset before its smaller net (the values of train_time.BASELINE_FLAGS)."""
     return ppo.make_config(
         "default",
         net_arch=(256, 256),
@@ -87,9 +91,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=120_000)
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
-    parser.add_argument("--json", default=str(OUT))
+    parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args()
-    configs = {"stop15_default": stop15_default(), "default": ppo.make_config("default")}
+    configs = {"baseline": baseline(), "default": ppo.make_config("default")}
     load_before = os.getloadavg()
     runs = []
     for threads in args.threads:
@@ -103,9 +107,8 @@ def main() -> None:
         "load_average_1_5_15_after": os.getloadavg(),
         "runs": runs,
     }
-    text = json.dumps(result, indent=2)
-    print(text)
-    Path(args.json).write_text(text + "\n")
+    write_results(args.out, result)
+    print(json.dumps(result, indent=2))
 
 
 if __name__ == "__main__":

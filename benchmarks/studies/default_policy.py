@@ -1,19 +1,21 @@
-"""The shipped default policy: train it, measure it, write its card (issue 9).
+"""The shipped default policy: train it, measure it, write its card.
 
-    nice -n 10 python benchmarks/default_policy.py train [--seed 0] [--threads 1]
-    python benchmarks/default_policy.py ship [--run runs/default-seed0] [--compare LABEL=PATH ...]
-    nice -n 10 python benchmarks/default_policy.py closed-loop [--compare LABEL=PATH ...]
+    nice -n 10 python benchmarks/studies/default_policy.py train [--seed 0] [--threads 1]
+    python benchmarks/studies/default_policy.py ship [--run runs/default-seed0]
+        [--compare LABEL=PATH ...]
+    nice -n 10 python benchmarks/studies/default_policy.py closed-loop [--compare LABEL=PATH ...]
+    nice -n 10 python benchmarks/studies/default_policy.py forces [--compare LABEL=PATH ...]
 
 `train` runs the `default` preset (training.ppo.PRESETS) into runs/default-seedN/.
 `ship` measures that run's policy with training.study.analytic_study (standard evaluation,
 evaluation with resistance, pure-resistance probe) and over wrist-stiffness bands, writes
 data/default.npz + .json (the training card plus those measurements, the observation study
-carried over) and data/training_log.csv, and benchmarks/results/default_policy.json. With
+carried over) and data/training_log.csv, and benchmarks/studies/results/default_policy.json. With
 --compare, other policies (e.g. the previous default) are measured the same way for the JSON.
 `closed-loop` runs the observation study's 13 MuJoCo resistance cases (seeds 0, 1) for the
 shipped default, the --compare policies and classical, and fills the default's card row.
 `forces` compares their forces on the randomized suite's door and drawer (first --seeds
-seeds) and on every task at the paper's offsets.
+seeds) and on every task at the paper's offsets. Each step rewrites the JSON with provenance.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.policy import ConstraintAwarePolicy, shipped_log_path, shipped_policy_path
 from constraint_aware.training.config import EnvConfig, resistance_config
 from constraint_aware.training.evaluate import evaluate
@@ -37,7 +40,7 @@ OUT = Path(__file__).parent / "results" / "default_policy.json"
 STIFFNESS_BANDS = ((500.0, 1000.0), (1000.0, 3000.0), (3000.0, 8000.0), (8000.0, 20_000.0))
 
 DESCRIPTION = (
-    "Constraint-aware policy, default (issue 9): (F/|F|, d, |F|/(k*delta), step force known) "
+    "Constraint-aware policy, default: (F/|F|, d, |F|/(k*delta), step force known) "
     "-> direction update, trained with the object's own resistance along the joint (dry "
     "friction, damping, inertia, released preload) and wrist stiffness k log-uniform in "
     "500-20,000 N/m; without the robot's step force k*delta the ratio and the flag are zero "
@@ -67,14 +70,14 @@ def measure(policy: ConstraintAwarePolicy) -> dict[str, Any]:
 
 
 def relabel_study(old: dict[str, Any], study: dict[str, Any]) -> dict[str, Any]:
-    """The observation study of the previous card, its default row renamed (stop 16's
+    """The observation study of the previous card, its default row renamed (the previous
     default: the magnitude observation, annealed preset), plus a row for this policy
     (closed-loop columns from `closed-loop`)."""
     rows = []
     for row in old["rows"]:
         row = dict(row)
         if row["observation"].endswith("= default"):
-            row["observation"] = "+ |F|/(k delta) (magnitude), annealed preset (stop 16)"
+            row["observation"] = "+ |F|/(k delta) (magnitude), annealed preset (previous default)"
         rows.append(row)
     new_row = {
         "observation": "+ |F|/(k delta) and a known flag (magnitude_flag), annealed preset "
@@ -94,7 +97,7 @@ def relabel_study(old: dict[str, Any], study: dict[str, Any]) -> dict[str, Any]:
         "by 11 deg for F = 0.78 N against d and 0.31 N across at k delta = 20 N, where the "
         "training physics implies 0.9 deg. With a separate known flag it turns 1.5 deg there; "
         "the standard evaluation falls from 1.72 to ~1.0 deg and the MuJoCo suite's door peak "
-        "|F| of the policy alone from 12 to ~7 N (benchmarks/results/default_policy.json)."
+        "|F| of the policy alone from 12 to ~7 N (benchmarks/studies/results/default_policy.json)."
     )
     return {**old, "chosen": "magnitude_flag", "rows": rows, "reason": reason}
 
@@ -144,7 +147,7 @@ def ship(run: Path, compare: list[str]) -> None:
         kept = json.loads(OUT.read_text())
         if kept.get("default", {}).get("run") == str(run):
             out.update({k: kept[k] for k in ("closed_loop", "forces") if k in kept})
-    OUT.write_text(json.dumps(out, indent=2) + "\n")
+    write_results(OUT, out)
     studies = {k: v["analytic_study"] for k, v in out.items() if "analytic_study" in v}
     print(json.dumps({k: v["standard_mean_deg"] for k, v in studies.items()}))
 
@@ -183,7 +186,7 @@ def closed_loop(compare: list[str]) -> None:
         "summary": rows,
         "runs": [dataclasses.asdict(r) for r in runs],
     }
-    OUT.write_text(json.dumps(out, indent=2) + "\n")
+    write_results(OUT, out)
     policy = policies["default"]
     card = dict(policy.card)
     study = card.get("observation_study")
@@ -243,7 +246,7 @@ def forces(compare: list[str], seeds: int) -> None:
         "summary": summary,
         "runs": [dataclasses.asdict(r) for r in runs],
     }
-    OUT.write_text(json.dumps(out, indent=2) + "\n")
+    write_results(OUT, out)
 
 
 def main() -> None:

@@ -1,22 +1,23 @@
-"""Observation study (issue 9): train the three observations, measure them, pick the default.
+"""Observation study: train the three observations, measure them, pick the default's.
 
-    nice -n 10 python benchmarks/observation_study.py train [--steps 600000] [--obs paper ...]
-    nice -n 10 python benchmarks/observation_study.py measure [--closed-loop]
+    nice -n 10 python benchmarks/studies/observation_study.py train [--steps 600000]
+        [--obs paper ...]
+    nice -n 10 python benchmarks/studies/observation_study.py measure [--closed-loop]
 
 `train` writes runs/study/OBS/policy.npz (fast preset, resistance env, equal env steps);
 `measure` evaluates them (analytic standard and resistance evaluation, the pure-resistance
 probe and, with --closed-loop, the MuJoCo resistance cases vs the classical controller) and
-writes benchmarks/results/observation_study.json.
+writes benchmarks/studies/results/observation_study.json (with provenance).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import time
 from pathlib import Path
 
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.policy import OBSERVATIONS, ConstraintAwarePolicy
 from constraint_aware.training.config import resistance_config
 from constraint_aware.training.study import analytic_study
@@ -80,8 +81,7 @@ def measure(observations: list[str], closed_loop: bool) -> None:
                 f"{c.axis} {c.level:g} {c.task} {c.controller}: {c.successes}/{c.n} "
                 f"peak {c.median_peak_force_N:.1f} mean {c.mean_force_N:.1f}"
             )
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(json.dumps(out, indent=1) + "\n")
+    write_results(OUT, out)
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
 """The objects' visual parts (door panel, drawer box, furniture) and the two embodiments.
 
-    nice -n 10 python benchmarks/visual_parts.py [--seeds 3] [--out FILE.json]
+    nice -n 10 python benchmarks/studies/visual_parts.py [--seeds 3] [--out FILE.json]
 
 The objects' main parts and furniture have no contacts (the joint is the constraint). This
 measures (1) the hook hand's least clearance to them over the five presets' runs, (2) how deep
@@ -9,16 +9,14 @@ the hinge side (its placement today, azimuth +90 deg) and on the free edge's sid
 and (3) Jaco drawer and door runs with the parts solid for the arm (sim.objects.
 ARM_CONTACT_BIT) against the visual parts. The Jaco runs use the default policy and the
 classical controller from 10 deg, the executor's start-of-run self-check off (it stops most
-arm runs before they move: issue 13's notes). Writes JSON, prints a table.
+arm runs before they move on the lagging arm). Writes JSON with provenance, prints a table.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import functools
-import json
 import math
 import time
 from collections.abc import Iterator
@@ -28,6 +26,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.simulate import RunSpec, controller_geometry, executor_config, run
@@ -108,7 +107,7 @@ def jaco_run(
             deepest[key] = max(deepest.get(key, 0.0), 1000 * found.depth)
 
     note()
-    cfg = dataclasses.replace(executor_config(task), self_check_steps=0)
+    cfg = executor_config(task).with_overrides(self_check__steps=0)
     assert cfg.workplane_normal is not None
     normal = np.asarray(cfg.workplane_normal, dtype=float)
     d0 = rotate_about(sim.admissible_direction(), normal, math.radians(10.0))
@@ -174,9 +173,7 @@ def main() -> None:
                         )
     result["jaco_runs"] = runs
     result["wall_time_s"] = time.perf_counter() - start
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=1) + "\n")
+    out = write_results(args.out, result)
     print("hook hand least clearance [mm]:", result["hook_hand_least_clearance_mm"])
     for name, found in grasp.items():
         print(f"Jaco grasp, {name}: " + (", ".join(

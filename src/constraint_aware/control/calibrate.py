@@ -1,0 +1,1032 @@
+"""Calibration: measure what the controllers need from a robot through the Robot protocol alone.
+
+`calibrate(robot, name=...)` holds, then pushes the grasped object in known directions, and
+returns a `RobotProfile` (control/profile.py): for each quantity its value, uncertainty, unit
+and method, or the reason it could not be measured. It uses only the protocol's required
+members (wrench, pose, commanded pose, command, advance, control period); the optional reports
+(`translational_stiffness`, `tracking_time_constant`) are only noted beside the measured
+values. It never imports MuJoCo.
+
+The phases (one reading per control period throughout):
+
+1. Rest: `rest_periods` readings while holding: their mean is the force offset.
+2. Pushes in the workplane's directions (`control.probe.push_directions`: four in the plane,
+   or the six world axes without one). Each push is a staircase: the setpoint moves further
+   along the direction every period, by at most twice its last stair and never by more than
+   would take |dF| (the force change from the reading before the push) past 0.8 of the way
+   to `force_limit` should the object block the whole stair at the stiffest the arm may
+   be: `max_stiffness` until a slope of |dF| over the stretch has been measured, twice
+   that slope after. Once the force rises the stairs are sized from that slope. The push
+   ends when
+   - |dF| reaches `contact_force`: blocked. That stair, held a period, is level A; one more
+     stair, sized from the slope to add push_force - contact_force and held a period, is
+     level B;
+   - the hand has followed the setpoint `free_travel` with |dF| below `contact_force`: free
+     (the object's own motion, or play in the grasp);
+   - the setpoint reaches `travel_limit`: soft (neither).
+   The setpoint then goes back to where it started, at once after a blocked push and in
+   `return_periods` equal steps after a free one, and holds until the hand settles. The
+   opposite of a direction is pushed only when that direction was blocked (a judged pair);
+   pushing stops once two blocked directions and a free one are known, or when the budget
+   (`max_periods`) would not leave room for another push. What is left of the budget is
+   spent holding at the start.
+3. The quantities:
+   - force noise sigma: the readings' spread about a straight line per axis (a drifting
+     reading is not noise), pooled over the rest before the pushes and the rest after them
+     (when the two spreads agree within POOL_RATIO);
+     the dead band is `deadband.threshold_from_noise(sigma)`;
+   - stiffness k: the arm is a spring at the tool point, F = F0 - k stretch with the
+     stretch = commanded - measured position; F0 holds what the stretch does not explain (a
+     grasp's preload, an arm's joint friction fed forward), so k = |F_B - F_A| /
+     |stretch_B - stretch_A| (workplane components), not |F| / |stretch|; the mean over the
+     blocked pushes whose hand had settled at both levels. Where the object gave way under
+     every push (the hand still moved), from those, with tau v (the arm's damping at the
+     hand's velocity v) taken off each stretch;
+   - grasp play: `control.probe.grasp_play` on the (A, B) pairs, the hand's travel against
+     the force extrapolated to zero force;
+   - sensor convention: `control.probe`'s own verdict on the level-A pushes (the median
+     cosine between the force change and the stretch change: -1 for the Robot convention);
+   - tracking time constant tau: on the free push, the tool point x along the push obeys
+     the arm's impedance, m x'' = k (s - x) - c x' - R, with s the setpoint (a straight line
+     within each period, as the protocol's "reached over the next control period") and R
+     the force the object resists with (from the wrist reading). The two parameters m / k
+     and c / k are fitted to the measured positions by least squares on the exact
+     discretization of that model; tau = c / k, the lag per unit speed (the Robot protocol:
+     a tool following a setpoint at speed v trails it by tau v).
+
+Safety: every reading is checked (finite force and poses, not stale, |F - F_rest| within
+`force_limit`); no setpoint is ever commanded further than `travel_limit` from where the
+calibration started; it stops after `max_periods`. On every stop, on any exception and at
+the end, the starting setpoint is commanded back and the robot is told to hold (`hold()`,
+when it has one). A named stop returns the profile with what was measured before it and the
+outcome; an exception carries the partial profile as `exc.robot_profile`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from constraint_aware.control.probe import (
+    STIFFNESS_VERDICTS,
+    ProbeConfig,
+    ProbePush,
+    ProbeResult,
+    grasp_play,
+    push_directions,
+)
+from constraint_aware.control.probe import _push as judge_push
+from constraint_aware.control.probe import _verdict as judge_pushes
+from constraint_aware.control.profile import QUANTITY_NAMES, Measurement, RobotProfile
+from constraint_aware.control.robot import (
+    Robot,
+    reported_stiffness,
+    reported_time_constant,
+    request_hold,
+)
+from constraint_aware.deadband import MIN_THRESHOLD, NOISE_SIGMAS, threshold_from_noise
+from constraint_aware.errors import (
+    InvalidInputError,
+    check_int,
+    check_number,
+    check_unit_vector,
+)
+from constraint_aware.geometry import FloatArray, in_plane
+from constraint_aware.spatial import Pose
+
+__all__ = ["CalibrationConfig", "calibrate"]
+
+#: Identical wrench samples in a row that stop the calibration (a stale driver).
+STALE_SAMPLES = 3
+#: A level is settled when the hand moved less than this share of the push's depth over the
+#: period it was held (a grasp that yields under the push still creeps by a few hundredths);
+#: the hand has settled at the start when it moved less than this share of free_travel in a
+#: period.
+SETTLE_SHARE = 0.05
+#: Periods at most to wait after a push for the hand to settle at the start.
+SETTLE_PERIODS = 2
+#: The readings at rest after the pushes are pooled into the noise only when their spread is
+#: within this factor of the spread before them (either way); a larger difference is taken
+#: for a grasp still moving after the pushes. Two windows of the same noise (12 and 8
+#: readings) differ by more in about 6 % of calibrations, which then keep only the first
+#: window: less precision, no bias.
+POOL_RATIO = 1.5
+#: Below this sigma [N] a force reading is implausibly quiet at rest (frozen, or noise-free).
+QUIET_SIGMA = 1e-6
+#: Level B is used for the stiffness only when its |dF| exceeds level A's by at least this
+#: share of (push_force - contact_force) (a push the travel limit cut short may not).
+LEVEL_SPREAD = 0.5
+#: The damping ratio the tau fit may take: [low, high]. Past `high` the arm is a first-order
+#: lag and its mass no longer shows in per-period readings; `low` excludes ringing no
+#: impedance controller is tuned to.
+DAMPING_RATIO_RANGE = (0.3, 5.0)
+#: Periods left in the budget from which a later blocked push also gets its level B.
+B_ROOM = 22
+#: A push has met something once |dF| passes TOUCH_SHARE x contact_force and TOUCH_SIGMAS
+#: x the noise sigma: from there on its stairs are sized from the measured slope.
+TOUCH_SHARE = 1.0 / 6.0
+TOUCH_SIGMAS = 5.0
+#: A stair may use at most this share of the headroom to the force limit, should the object
+#: block all of it at the stiffest the arm may be (the noise and the arm's dynamics add).
+SAFE_SHARE = 0.8
+#: Periods kept in the budget for levels A and B of a push that met the object.
+RESERVE_PERIODS = 4
+#: Periods a push needs at least (a few stairs, the way back and the settling): pushing stops
+#: when fewer remain in the budget.
+MIN_PUSH_PERIODS = 6
+
+
+@dataclass(frozen=True)
+class CalibrationConfig:
+    """How the calibration pushes (module docstring). Units in brackets. Validated at
+    construction (ConfigError names the field and its valid range)."""
+
+    rest_periods: int = 12  # readings at rest, one per period, for the force offset and the
+    # noise (>= 3; sigma's relative standard error is about 1 / sqrt(6 (n - 2)))
+    force_limit: float = 20.0  # [N] |F - F_rest| above this stops the calibration; keep it
+    # below the object's limit and the executor's
+    contact_force: float = 3.0  # [N] level A: a push has met the object at this |dF|
+    push_force: float = 6.0  # [N] level B aims push_force - contact_force above level A
+    max_stiffness: float = 20_000.0  # [N/m] the stiffest arm the pushes are sized for: until
+    # a push has measured the arm, no stair is longer than 0.8 force_limit / max_stiffness
+    first_push: float = 4e-4  # [m] the first stair of each push
+    free_travel: float = 0.003  # [m] a direction where the hand follows the setpoint this
+    # far with |dF| below contact_force is free
+    travel_limit: float = 0.02  # [m] the furthest the setpoint ever moves from the start
+    return_periods: int = 2  # periods to bring the setpoint back from a free push
+    max_periods: int = 49  # the calibration's budget of control periods: the pushes stop
+    # short of it, what is left is spent at rest (more noise readings)
+
+    def __post_init__(self) -> None:
+        n = "CalibrationConfig."
+        check_int(n + "rest_periods", self.rest_periods, low=3)
+        limit = check_number(n + "force_limit", self.force_limit, low=0, low_open=True, unit="N")
+        contact = check_number(
+            n + "contact_force", self.contact_force, low=0, low_open=True, high=limit,
+            high_open=True, unit="N",
+        )  # fmt: skip
+        check_number(
+            n + "push_force", self.push_force, low=contact, low_open=True, high=limit,
+            high_open=True, unit="N",
+        )  # fmt: skip
+        check_number(n + "max_stiffness", self.max_stiffness, low=0, low_open=True, unit="N/m")
+        travel = check_number(
+            n + "travel_limit", self.travel_limit, low=0, low_open=True, high=0.05, unit="m"
+        )
+        check_number(n + "first_push", self.first_push, low=1e-5, high=travel, unit="m")
+        check_number(
+            n + "free_travel", self.free_travel, low=0, low_open=True, high=travel, unit="m"
+        )
+        check_int(n + "return_periods", self.return_periods, low=1)
+        check_int(n + "max_periods", self.max_periods, low=self.rest_periods + 1)
+
+
+@dataclass
+class Reading:
+    """One control period's reading. Vectors (3,) in the world frame."""
+
+    period: int  # control periods advanced before it
+    force: FloatArray  # [N]
+    position: FloatArray  # [m] the measured tool point
+    commanded: FloatArray  # [m] the setpoint
+    pose: Pose  # the measured pose
+
+    @property
+    def stretch(self) -> FloatArray:
+        """[m] commanded minus measured position: the arm spring's deflection (and lag)."""
+        return self.commanded - self.position
+
+
+@dataclass
+class Push:
+    """One staircase push along `direction` (3,) unit; `kind`: blocked, free or soft."""
+
+    direction: FloatArray
+    base: Reading  # the reading at the start just before the push
+    kind: str = "soft"
+    stairs: list[Reading] = field(default_factory=list)  # one per period on the way out
+    depths: list[float] = field(default_factory=list)  # [m] the setpoint's depth per stair
+    level_a: Reading | None = None  # blocked: the stair that reached contact_force
+    level_b: Reading | None = None  # blocked: the held stair toward push_force
+    depth_a: float = 0.0  # [m]
+    depth_b: float = 0.0  # [m]
+    settled_a: bool = False
+    settled_b: bool = False
+    before_a: Reading | None = None  # the reading a period before level A (its velocity)
+    before_b: Reading | None = None
+    back: list[Reading] = field(default_factory=list)  # the way back and the settling
+
+    def change(self, reading: Reading) -> tuple[float, float]:
+        """(|dF| [N], the hand's travel along the push [m]) since the base."""
+        df = float(np.linalg.norm(reading.force - self.base.force))
+        return df, float((reading.position - self.base.position) @ self.direction)
+
+
+class _Stop(Exception):
+    """A named stop of the calibration (a profile outcome, not a robot error)."""
+
+    def __init__(self, outcome: str, reason: str) -> None:
+        super().__init__(reason)
+        self.outcome = outcome
+
+
+class _Session:
+    """The robot, commanded within the travel limit and read once per period, every reading
+    checked: finite, fresh, within the force limit."""
+
+    def __init__(self, robot: Robot, cfg: CalibrationConfig, home: Pose) -> None:
+        self.robot = robot
+        self.cfg = cfg
+        self.home = home
+        self.periods = 0
+        self.rest_force: FloatArray | None = None  # [N] once the rest phase is done
+        self.stiffness: float | None = None  # [N/m] the steepest slope a push has measured
+        self.notes: list[str] = []  # what the profile should say about the pushes
+        self.touch = cfg.contact_force / 3.0  # [N] |dF| from which a push has met something
+        self._last: FloatArray | None = None
+        self._repeats = 0
+
+    @property
+    def remaining(self) -> int:
+        return self.cfg.max_periods - self.periods
+
+    def at(self, direction: FloatArray, depth: float) -> Pose:
+        """The starting pose moved `depth` [m] along `direction`, within the travel limit."""
+        depth = min(depth, self.cfg.travel_limit)
+        return Pose(self.home.position + depth * direction, self.home.orientation)
+
+    def step(self, target: Pose | None = None) -> Reading:
+        """Command `target` (None: keep the setpoint), let one period pass, read."""
+        if self.periods >= self.cfg.max_periods:
+            raise _Stop("time_limit", f"the budget of {self.cfg.max_periods} periods is used up")
+        if target is not None:
+            offset = float(np.linalg.norm(np.asarray(target.position) - self.home.position))
+            if not offset <= self.cfg.travel_limit * (1 + 1e-9):  # also catches NaN
+                raise _Stop("bad_reading", f"a target {offset} m from the start was refused")
+            self.robot.command_pose(target)
+        self.robot.advance()
+        self.periods += 1
+        return self.read()
+
+    def read(self) -> Reading:
+        wrench = self.robot.read_wrench()
+        force = np.asarray(wrench.force, dtype=float)
+        if force.shape != (3,) or not np.all(np.isfinite(force)):
+            raise _Stop("bad_reading", f"wrench force {wrench.force!r} is not 3 finite numbers")
+        sample = np.concatenate([force, np.asarray(wrench.torque, dtype=float).ravel()])
+        if self._last is not None and np.array_equal(sample, self._last):
+            self._repeats += 1
+            if self._repeats >= STALE_SAMPLES - 1:
+                raise _Stop("stale_wrench", f"{STALE_SAMPLES} identical wrench samples in a row")
+        else:
+            self._repeats = 0
+        self._last = sample
+        pose = self.robot.read_pose()
+        commanded = self.robot.commanded_pose()
+        for what, p in (("pose", pose), ("commanded pose", commanded)):
+            _check_pose(p, what)
+        if self.rest_force is not None:
+            change = float(np.linalg.norm(force - self.rest_force))
+            if change > self.cfg.force_limit:
+                raise _Stop(
+                    "force_limit",
+                    f"|F - F_rest| = {change:.1f} N > the calibration's limit "
+                    f"{self.cfg.force_limit:g} N",
+                )
+        return Reading(
+            self.periods,
+            force,
+            np.asarray(pose.position, dtype=float),
+            np.asarray(commanded.position, dtype=float),
+            pose,
+        )
+
+    def restore(self, notes: list[str], wait: bool) -> None:
+        """Command the starting setpoint back (and let a period pass when `wait`), then tell
+        the robot to hold; failures become notes (the profile must still be returned)."""
+        try:
+            moved = float(np.linalg.norm(self.robot.commanded_pose().position - self.home.position))
+            self.robot.command_pose(self.home)
+            if wait and not moved <= 1e-9:  # back already: nothing to wait for
+                self.robot.advance()
+                self.periods += 1
+        except Exception as exc:
+            notes.append(f"restoring the starting setpoint failed: {exc!r}")
+        failed = request_hold(self.robot)
+        if failed:
+            notes.append(failed)
+
+
+def _check_pose(pose: Pose, what: str) -> None:
+    position = np.asarray(pose.position, dtype=float)
+    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(pose.orientation.as_quat()))):
+        raise _Stop("bad_reading", f"{what} {pose.position!r} is not finite")
+
+
+def calibrate(
+    robot: Robot,
+    name: str = "robot",
+    workplane_normal: FloatArray | tuple[float, float, float] | None = None,
+    config: CalibrationConfig | None = None,
+    setup: str = "",
+) -> RobotProfile:
+    """Measure the robot's force noise and offset, stiffness, tracking time constant, grasp
+    play and sensor convention (module docstring).
+
+    Args:
+        robot: a Robot holding its grasp, at rest; only its required members are used.
+        name: the robot's name, recorded in the profile.
+        workplane_normal: (3,) the plane to push in (the task's workplane); None pushes
+            along the six world axes.
+        config: how to push; None: CalibrationConfig's defaults.
+        setup: what the hand holds, recorded in the profile.
+
+    Returns:
+        The profile; its `outcome` says whether every phase ran. The robot is told to hold
+        at the end. A robot exception propagates with the partial profile attached as
+        `exc.robot_profile`.
+    """
+    if not isinstance(name, str) or not name.strip():
+        raise InvalidInputError(f"name: must be a non-empty string, got {name!r}")
+    if not isinstance(setup, str):
+        raise InvalidInputError(f"setup: must be a string, got {setup!r}")
+    cfg = config or CalibrationConfig()
+    normal = None
+    if workplane_normal is not None:
+        normal = np.asarray(check_unit_vector("workplane_normal", workplane_normal))
+    period = check_number("robot.control_period", robot.control_period, low=0, low_open=True)
+    profile = RobotProfile(
+        robot=name,
+        quantities={q: Measurement.unmeasured(q, "not reached") for q in QUANTITY_NAMES},
+        control_period=period,
+        setup=setup,
+        workplane_normal=None if normal is None else (normal[0], normal[1], normal[2]),
+    )
+    session: _Session | None = None
+    try:
+        start = robot.commanded_pose()
+        _check_pose(start, "commanded pose")
+        session = _Session(robot, cfg, start)
+        _run(session, normal, profile)
+    except _Stop as stop:
+        profile.outcome = stop.outcome
+        profile.notes.append(f"stopped ({stop.outcome}): {stop}")
+        _mark_unreached(profile, f"the calibration stopped first ({stop.outcome}: {stop})")
+        _finish(robot, session, profile, wait=True)
+    except BaseException as exc:
+        profile.outcome = "error"
+        profile.notes.append(f"stopped (error): {type(exc).__name__}: {exc}")
+        _mark_unreached(profile, f"the robot raised first ({type(exc).__name__})")
+        try:  # first: a second Ctrl-C during the restore must not lose it
+            exc.robot_profile = profile  # type: ignore[attr-defined]
+        except AttributeError:
+            profile.notes.append("could not attach the profile to the exception")
+        _finish(robot, session, profile, wait=False)
+        raise
+    else:
+        _finish(robot, session, profile, wait=True)
+    return profile
+
+
+def _finish(robot: Robot, session: _Session | None, profile: RobotProfile, wait: bool) -> None:
+    """Restore the start and hold (or only hold, when the start was never read)."""
+    if session is None:
+        failed = request_hold(robot)
+        if failed:
+            profile.notes.append(failed)
+        return
+    session.restore(profile.notes, wait=wait)
+    profile.periods = session.periods
+
+
+def _mark_unreached(profile: RobotProfile, reason: str) -> None:
+    for name, m in profile.quantities.items():
+        if not m.measured and m.reason == "not reached":
+            profile.quantities[name] = Measurement.unmeasured(name, reason)
+
+
+def _run(session: _Session, normal: FloatArray | None, profile: RobotProfile) -> None:
+    robot, cfg = session.robot, session.cfg
+    k_report, k_note = reported_stiffness(robot)
+    tau_report, tau_note = reported_time_constant(robot)
+    profile.notes.extend(note for note in (k_note, tau_note) if note)
+    rest = _rest(session, profile)
+    pushes = _pushes(session, normal, rest[-1], profile)
+    profile.notes.extend(dict.fromkeys(session.notes))
+    final = _final_rest(session)
+    if len(final) >= 3:
+        first, last = (_spread(w) for w in (rest, final))
+        if first > 0 and 1 / POOL_RATIO <= last / first <= POOL_RATIO:
+            _noise(profile, [rest, final])
+        else:
+            profile.notes.append(
+                f"the readings at rest after the pushes spread {last:.3g} N against "
+                f"{first:.3g} N before them (the grasp still moving): not pooled into the noise"
+            )
+    period = robot.control_period
+    _stiffness(profile, pushes, normal, cfg, period)
+    _time_constant(profile, pushes, period)
+    tau = profile.value("tracking_time_constant")
+    if tau is not None:  # once more, the hand's damping removed from the stretch
+        _stiffness(profile, pushes, normal, cfg, period, tau)
+        _time_constant(profile, pushes, period)
+    _play(profile, pushes, normal, cfg)
+    _convention(profile, pushes, normal, cfg)
+    if k_report is not None:
+        profile.notes.append(f"the robot reports translational_stiffness {k_report:g} N/m")
+    if tau_report is not None:
+        profile.notes.append(f"the robot reports tracking_time_constant {tau_report:g} s")
+
+
+# --- phase 1: rest ------------------------------------------------------------------------
+def _rest(session: _Session, profile: RobotProfile) -> list[Reading]:
+    """Hold for rest_periods readings: the force offset, and a first noise estimate (the
+    force from which a push has met something)."""
+    n = session.cfg.rest_periods
+    readings = [session.step() for _ in range(n)]
+    forces = np.array([r.force for r in readings])
+    residual = _about_a_line(forces)
+    sigma = float(np.sqrt(np.sum(residual**2) / (3 * (n - 2))))
+    offset = forces.mean(axis=0)
+    error = np.sqrt(np.sum(residual**2, axis=0) / (n - 2) / n)
+    for i, axis in enumerate("xyz"):
+        profile.quantities[f"force_offset_{axis}"] = Measurement(
+            float(offset[i]), float(error[i]), "N", f"mean of {n} readings at rest", n
+        )
+    session.rest_force = offset
+    # the force a push has met something at: well above the noise, well below contact
+    session.touch = max(TOUCH_SHARE * session.cfg.contact_force, TOUCH_SIGMAS * sigma)
+    _noise(profile, [readings])  # kept if the pushes stop early; refined after them
+    return readings
+
+
+def _final_rest(session: _Session) -> list[Reading]:
+    """Hold at the start for what is left of the budget (noise readings); the leading ones
+    while the hand still moved are dropped."""
+    readings = [session.step(session.home) for _ in range(max(session.remaining, 0))]
+    tolerance = SETTLE_SHARE * session.cfg.free_travel
+    while (
+        len(readings) >= 2
+        and np.linalg.norm(readings[1].position - readings[0].position) >= tolerance
+    ):
+        readings.pop(0)
+    return readings[1:] if readings else []
+
+
+def _noise(profile: RobotProfile, windows: list[list[Reading]]) -> None:
+    """sigma from the readings at rest: the spread about a straight line per axis and
+    window (a drifting reading is not noise), pooled over the axes and the windows of at
+    least three readings; the dead band from it."""
+    used = [w for w in windows if len(w) >= 3]
+    squares = sum(float(np.sum(_about_a_line(np.array([r.force for r in w])) ** 2)) for w in used)
+    dof = sum(3 * (len(w) - 2) for w in used)
+    count = sum(len(w) for w in used)
+    sigma = math.sqrt(squares / dof)
+    sigma_u = sigma / math.sqrt(2 * dof)
+    q = profile.quantities
+    q["force_noise"] = Measurement(
+        sigma,
+        sigma_u,
+        "N",
+        f"{count} readings at rest, one per period (windows of "
+        f"{' + '.join(str(len(w)) for w in used)}, before and after the pushes): the spread "
+        "about a straight line per axis and window (drift removed), pooled over x, y, z",
+        count,
+    )
+    band = threshold_from_noise(sigma)
+    q["dead_band"] = Measurement(
+        band,
+        0.0 if band == MIN_THRESHOLD else NOISE_SIGMAS * sigma_u,
+        "N",
+        f"deadband.threshold_from_noise: max({MIN_THRESHOLD:g} N, {NOISE_SIGMAS:g} sigma)",
+        count,
+    )
+    if sigma < QUIET_SIGMA:
+        profile.notes.append(
+            f"the force reading is implausibly quiet at rest (sigma {sigma:.2g} N): a frozen "
+            "or noise-free reading"
+        )
+    for w in used:
+        forces = np.array([r.force for r in w])
+        drift = float(np.max(np.abs(forces[-1] - forces[0])))
+        if drift > max(NOISE_SIGMAS * sigma, MIN_THRESHOLD) * 2:
+            profile.notes.append(
+                f"the force reading drifted about {drift:.2f} N over {len(w)} periods at rest "
+                "(a creeping grasp or a drifting sensor): removed from the noise"
+            )
+    if len(used) == 2:
+        first, last = (np.mean([r.force for r in w], axis=0) for w in used)
+        change = float(np.linalg.norm(last - first))
+        if change > max(NOISE_SIGMAS * sigma, MIN_THRESHOLD):
+            profile.notes.append(
+                f"the reading at rest changed by {change:.2f} N over the calibration (the "
+                "grasp or the object moved under the pushes)"
+            )
+
+
+def _spread(window: list[Reading]) -> float:
+    """[N] the per-axis spread of a window's readings about a straight line, pooled."""
+    residual = _about_a_line(np.array([r.force for r in window]))
+    return math.sqrt(float(np.sum(residual**2)) / (3 * (len(window) - 2)))
+
+
+def _about_a_line(forces: FloatArray) -> FloatArray:
+    """(n, 3) the residuals of (n, 3) readings about a least-squares straight line in time."""
+    n = len(forces)
+    t = np.arange(n, dtype=float)
+    design = np.stack([np.ones(n), t - t.mean()], axis=1)
+    coef, *_ = np.linalg.lstsq(design, forces, rcond=None)
+    return np.asarray(forces - design @ coef, dtype=float)
+
+
+# --- phase 2: pushes ----------------------------------------------------------------------
+def _pushes(
+    session: _Session, normal: FloatArray | None, rest: Reading, profile: RobotProfile
+) -> list[Push]:
+    """Staircase pushes until two blocked directions and a free one are known (module
+    docstring), in the order e1, e2, -e1, -e2 (e3, -e3 without a workplane): the stiffness
+    and a free direction first; the opposite of a free direction is skipped once a free one
+    is known."""
+    axes = push_directions(4, normal)
+    if normal is None:  # the six world axes as +x, -x, +y, -y, +z, -z
+        axes = axes[0::2] + axes[1::2]
+    pushes: list[Push] = []
+    base = rest
+    for u in axes:
+        blocked = sum(p.kind == "blocked" for p in pushes)
+        free = any(p.kind == "free" for p in pushes)
+        if blocked >= 2 and free:
+            break
+        opposite = next((p for p in pushes if float(p.direction @ u) < -0.99), None)
+        if opposite is not None and opposite.kind != "blocked" and free:
+            continue
+        if session.remaining < MIN_PUSH_PERIODS:
+            profile.notes.append(
+                f"pushing stopped with {session.remaining} periods left of the budget "
+                f"({session.cfg.max_periods})"
+            )
+            break
+        # level B (for the stiffness) on the first blocked push, and on later ones while
+        # the budget leaves room for a free push after them
+        first = not any(p.level_b is not None for p in pushes)
+        push = _staircase(session, u, base, first or session.remaining >= B_ROOM)
+        pushes.append(push)
+        base = push.back[-1]
+    return pushes
+
+
+def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -> Push:
+    cfg = session.cfg
+    push = Push(direction=u, base=base)
+    depth, step = 0.0, cfg.first_push
+    aim = 0.5 * (cfg.contact_force + cfg.push_force)  # passing contact_force in one stair
+    while True:
+        depth = min(depth + step, cfg.travel_limit)
+        reading = session.step(session.at(u, depth))
+        push.stairs.append(reading)
+        push.depths.append(depth)
+        df, travel = push.change(reading)
+        if df >= cfg.contact_force:
+            push.kind = "blocked"
+            break
+        if travel >= cfg.free_travel:
+            push.kind = "free"
+            break
+        if depth >= cfg.travel_limit:
+            break
+        if session.remaining <= cfg.return_periods + RESERVE_PERIODS:
+            session.notes.append("a push ended early: the budget needs the rest to come back")
+            break
+        # the next stair: at most twice the last and half of free_travel (a free push takes
+        # a few stairs); once the force rises with a slope it can be trusted, what the slope
+        # says passes contact_force (at least half the last stair: a smaller one would change
+        # |dF| by little more than the noise); never more than _safe_step
+        grow = min(2.0 * step, 0.5 * cfg.free_travel)
+        slope = _contact_slope(push, session.touch)
+        if slope is not None:
+            grow = min(grow, max((aim - df) / slope, 0.5 * step))
+        step = min(grow, _safe_step(session, push, df))
+    if push.kind == "blocked":
+        _levels(session, push, depth, level_b)
+        slopes = [
+            x for x in (_contact_slope(push, session.touch), _level_slope(push)) if x is not None
+        ]
+        if slopes:
+            session.stiffness = max([*slopes, session.stiffness or 0.0])
+    _return(session, push, ramp=push.kind == "free")
+    return push
+
+
+def _safe_step(session: _Session, push: Push, df: float) -> float:
+    """[m] the largest stair that keeps |dF| within the force limit should the object block
+    all of it: SAFE_SHARE of the headroom (force_limit - |dF|) over the stiffest the arm
+    may be, twice the steepest slope measured (this push's, or an earlier push's), or
+    max_stiffness before any."""
+    known = [x for x in (_contact_slope(push, session.touch), session.stiffness) if x]
+    bound = 2.0 * max(known) if known else session.cfg.max_stiffness
+    return SAFE_SHARE * max(session.cfg.force_limit - df, 0.0) / bound
+
+
+def _contact_slope(push: Push, touch: float) -> float | None:
+    """[N/m] the change of |dF| over the change of |d stretch| from the first stair whose
+    |dF| passed `touch` [N] to the last (a wide base: over one small stair the sensor's
+    noise would dominate); None with fewer than two such stairs, or when |dF| rose by less
+    than `touch` between them (a slope the noise could make)."""
+    touching = [r for r in push.stairs if push.change(r)[0] >= touch]
+    if len(touching) < 2:
+        return None
+    a, b = touching[0], touching[-1]
+    fa, fb = push.change(a)[0], push.change(b)[0]
+    sa = float(np.linalg.norm(a.stretch - push.base.stretch))
+    sb = float(np.linalg.norm(b.stretch - push.base.stretch))
+    if sb - sa <= 1e-6 or fb - fa < touch:
+        return None
+    return (fb - fa) / (sb - sa)
+
+
+def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
+    """Hold the stair that reached contact_force a period: level A. Then (when `level_b`)
+    one more stair toward push_force - contact_force above A, sized from the trusted slope
+    and never beyond _safe_step or travel_limit, held a period: level B; when B is short of
+    A by less than LEVEL_SPREAD x (push_force - contact_force), one more stair sized from
+    the slope between A and B."""
+    cfg = session.cfg
+    reached = push.stairs[-1]
+    held = session.step()
+    push.level_a, push.depth_a, push.before_a = held, depth, reached
+    push.settled_a = _settled(reached, held, depth)
+    if not level_b:
+        return
+    slope = _contact_slope(push, session.touch)
+    wanted = push.change(held)[0] + (cfg.push_force - cfg.contact_force)
+    for _ in range(2):
+        now = push.level_b or held
+        df = push.change(now)[0]
+        start = push.depth_b or depth
+        step = _safe_step(session, push, df)
+        if slope is not None:
+            step = min(step, max(wanted - df, 0.0) / slope)
+        depth_b = min(start + step, cfg.travel_limit)
+        if depth_b - start < 1e-5 or session.remaining < 2:
+            return
+        first = session.step(session.at(push.direction, depth_b))
+        last = session.step()
+        push.level_b, push.depth_b, push.before_b = last, depth_b, first
+        push.settled_b = _settled(first, last, depth_b)
+        gained = push.change(last)[0] - push.change(held)[0]
+        if gained >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
+            return
+        ds = float(np.linalg.norm(last.stretch - held.stretch))
+        if gained < session.touch or ds <= 1e-6:
+            return
+        slope = gained / ds
+
+
+def _level_slope(push: Push) -> float | None:
+    """[N/m] |F_B - F_A| / |stretch_B - stretch_A| (None without both levels)."""
+    if push.level_a is None or push.level_b is None:
+        return None
+    ds = float(np.linalg.norm(push.level_b.stretch - push.level_a.stretch))
+    df = float(np.linalg.norm(push.level_b.force - push.level_a.force))
+    return df / ds if ds > 1e-6 else None
+
+
+def _settled(before: Reading, after: Reading, depth: float) -> bool:
+    return float(np.linalg.norm(after.position - before.position)) < SETTLE_SHARE * depth
+
+
+def _return(session: _Session, push: Push, ramp: bool) -> None:
+    """Bring the setpoint back, in return_periods equal steps (ramp) or at once, then hold
+    until the hand settles (at most SETTLE_PERIODS periods): the next push starts at rest."""
+    far = push.level_b.commanded if push.level_b is not None else push.stairs[-1].commanded
+    home = session.home.position
+    steps = session.cfg.return_periods if ramp else 1
+    for i in range(1, steps + 1):
+        position = far + (home - far) * (i / steps)
+        push.back.append(session.step(Pose(position, session.home.orientation)))
+    tolerance = SETTLE_SHARE * session.cfg.free_travel
+    for _ in range(SETTLE_PERIODS):
+        reading = session.step()
+        moved = float(np.linalg.norm(reading.position - push.back[-1].position))
+        push.back.append(reading)
+        if moved < tolerance:
+            break
+
+
+# --- phase 3: the quantities --------------------------------------------------------------
+def _stiffness(
+    profile: RobotProfile,
+    pushes: list[Push],
+    normal: FloatArray | None,
+    cfg: CalibrationConfig,
+    period: float,
+    tau: float | None = None,
+) -> None:
+    """k from the levels of the blocked pushes; with the tracking time constant `tau` [s]
+    known, the part tau v of each stretch the hand's velocity v explains (the arm's damping,
+    where the object gives way under the push) is not counted as spring."""
+    q = profile.quantities
+    sigma = q["force_noise"].value or 0.0
+    method = (
+        "blocked pushes: |F_B - F_A| / |stretch_B - stretch_A| between a held reading at "
+        f"{cfg.contact_force:g} N and one about {cfg.push_force - cfg.contact_force:g} N "
+        "above it, in the workplane"
+    )
+    if tau is not None:
+        method += f"; stretch less tau v (tau {tau:.3g} s, v the hand's velocity)"
+
+    def spring(reading: Reading, before: Reading | None) -> FloatArray:
+        if tau is None or before is None:
+            return reading.stretch
+        return reading.stretch - tau * (reading.position - before.position) / period
+
+    estimates: list[tuple[float, float]] = []
+    moving: list[tuple[float, float]] = []
+    for p in pushes:
+        if p.level_a is None or p.level_b is None:
+            continue
+        df = in_plane(p.level_b.force - p.level_a.force, normal)
+        ds = in_plane(spring(p.level_b, p.before_b) - spring(p.level_a, p.before_a), normal)
+        f, s = float(np.linalg.norm(df)), float(np.linalg.norm(ds))
+        if s > 1e-6 and f >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
+            (estimates if p.settled_a and p.settled_b else moving).append((f / s, f))
+    if not estimates and moving:
+        # the object gave way under every push: the hand still moved at the readings
+        estimates = moving
+        method += "; the object gave way under the pushes (the hand still moved)"
+    if estimates:
+        values = [k for k, _ in estimates]
+        value = float(np.mean(values))
+        spread = float(np.std(values, ddof=1)) / math.sqrt(len(values)) if len(values) > 1 else 0
+        # the readings' noise on |F_B - F_A|, relative
+        resolution = value * math.sqrt(2.0) * sigma / min(f for _, f in estimates)
+        q["stiffness"] = Measurement(
+            value,
+            math.hypot(spread, resolution / math.sqrt(len(values))),
+            "N/m",
+            f"{method}; the mean over {len(values)} directions",
+            len(values),
+        )
+    else:
+        kinds = ", ".join(p.kind for p in pushes) or "none"
+        q["stiffness"] = Measurement.unmeasured(
+            "stiffness",
+            f"no push met {cfg.contact_force:g} N and then "
+            f"{cfg.push_force - cfg.contact_force:g} N more within the "
+            f"{cfg.travel_limit * 1000:g} mm travel limit (pushes: {kinds}): nothing to push "
+            "against",
+            method,
+        )
+
+
+def _play(
+    profile: RobotProfile, pushes: list[Push], normal: FloatArray | None, cfg: CalibrationConfig
+) -> None:
+    """The grasp's play from the blocked pushes' two levels (control.probe.grasp_play)."""
+    q = profile.quantities
+    pairs = [p for p in pushes if p.level_a is not None and p.level_b is not None]
+    probe_cfg = _probe_config(cfg)
+    shallow, deep = [], []
+    for p in pairs:
+        assert p.level_a is not None and p.level_b is not None
+        a = _as_probe_push(p, p.level_a, p.depth_a, p.settled_a, normal, probe_cfg)
+        b = _as_probe_push(p, p.level_b, p.depth_b, p.settled_b, normal, probe_cfg)
+        shallow.append(a)
+        deep.append(dataclasses.replace(b, shallow=len(shallow) - 1))
+    play_method = (
+        "control.probe.grasp_play on the two levels of each blocked push: the hand's travel "
+        "against the force, extrapolated to zero force"
+    )
+    plays = [
+        one
+        for a, b in zip(shallow, deep, strict=True)
+        if (one := grasp_play([a], [dataclasses.replace(b, shallow=0)], probe_cfg.min_force))
+        is not None
+    ]
+    if not plays:
+        q["grasp_play"] = Measurement.unmeasured(
+            "grasp_play",
+            "no blocked push with two settled levels whose travel grew with the force",
+            play_method,
+        )
+        return
+    play = grasp_play(shallow, deep, probe_cfg.min_force)
+    assert play is not None
+    spread = float(np.std(plays, ddof=1)) / math.sqrt(len(plays)) if len(plays) > 1 else 0.0
+    q["grasp_play"] = Measurement(
+        play, spread, "m", play_method + f"; the median over {len(plays)}", len(plays)
+    )
+
+
+def _probe_config(cfg: CalibrationConfig) -> ProbeConfig:
+    """control.probe's settings for judging the calibration's pushes (its force gate at most
+    the calibration's contact force)."""
+    return ProbeConfig(
+        amplitude=min(cfg.free_travel, 0.02),
+        force_limit=cfg.force_limit,
+        min_force=min(ProbeConfig.min_force, cfg.contact_force),
+        play_amplitude=None,
+    )
+
+
+def _as_probe_push(
+    push: Push,
+    reading: Reading,
+    depth: float,
+    settled: bool,
+    normal: FloatArray | None,
+    probe_cfg: ProbeConfig,
+) -> ProbePush:
+    """A reading of a push as control.probe judges one (force and stretch changes from the
+    reading before the push)."""
+    cfg = dataclasses.replace(probe_cfg, amplitude=min(max(depth, 1e-4), 0.02))
+    return judge_push(
+        np.asarray(push.direction, dtype=float),
+        depth,
+        reading.force - push.base.force,
+        reading.stretch - push.base.stretch,
+        reading.pose,
+        push.base.pose,
+        settled,
+        normal,
+        cfg,
+    )
+
+
+def _convention(
+    profile: RobotProfile, pushes: list[Push], normal: FloatArray | None, cfg: CalibrationConfig
+) -> None:
+    """control.probe's verdict on level A of the blocked pushes (the others' last stairs
+    are not judged)."""
+    probe_cfg = _probe_config(cfg)
+    result = ProbeResult(workplane_normal=None if normal is None else normal.tolist())
+    for p in pushes:
+        if p.level_a is not None:
+            result.pushes.append(
+                _as_probe_push(p, p.level_a, p.depth_a, p.settled_a, normal, probe_cfg)
+            )
+        elif p.stairs:
+            result.pushes.append(
+                _as_probe_push(p, p.stairs[-1], p.depths[-1], False, normal, probe_cfg)
+            )
+    judge_pushes(result, probe_cfg)
+    profile.convention = result.verdict
+    method = (
+        "control.probe's verdict on the blocked pushes: the median cosine between the force "
+        "change and the stretch change"
+    )
+    judged = sum(p.judged for p in result.pushes)
+    if result.median_cos is None:
+        profile.quantities["sensor_convention"] = Measurement.unmeasured(
+            "sensor_convention", f"{result.verdict}: {result.reason}", method, judged
+        )
+        return
+    cosines = [p.cos for p in result.pushes if p.cos is not None]
+    spread = float(np.std(cosines, ddof=1)) / math.sqrt(len(cosines)) if len(cosines) > 1 else 0
+    profile.quantities["sensor_convention"] = Measurement(
+        result.median_cos, spread, "1", f"{method} ({result.verdict}: {result.reason})", judged
+    )
+    if result.verdict not in STIFFNESS_VERDICTS:
+        profile.notes.append(
+            f"sensor convention {result.verdict}: {result.reason}; the stiffness holds (|dF| "
+            "over |d stretch|), the force's sign or frame does not"
+        )
+
+
+def _time_constant(profile: RobotProfile, pushes: list[Push], period: float) -> None:
+    """tau = c / k from the free push (module docstring)."""
+    method = (
+        "the tool point's motion on a free push, out and back, fitted with the arm's "
+        "impedance m x'' = k (s - x) - c x' - R (R from the wrist reading): tau = c / k"
+    )
+    q = profile.quantities
+    free = [p for p in pushes if p.kind == "free"]
+    k = q["stiffness"].value
+    if not free:
+        q["tracking_time_constant"] = Measurement.unmeasured(
+            "tracking_time_constant",
+            "no free direction: every push met the object or stayed soft; tau needs a "
+            "direction the hand can move in",
+            method,
+        )
+        return
+    if k is None:
+        q["tracking_time_constant"] = Measurement.unmeasured(
+            "tracking_time_constant",
+            "the stiffness is unmeasured: the object's force cannot be told from the arm's lag",
+            method,
+        )
+        return
+    push = free[0]
+    u = push.direction
+    readings = [push.base, *push.stairs, *push.back]
+    setpoint = np.array([(r.commanded - push.base.commanded) @ u for r in readings])
+    position = np.array([(r.position - push.base.position) @ u for r in readings])
+    resist = np.array([-(r.force - push.base.force) @ u for r in readings])
+    fit = fit_impedance(setpoint - resist / k, position, period)
+    if fit is None:
+        q["tracking_time_constant"] = Measurement.unmeasured(
+            "tracking_time_constant",
+            "the fit of the arm's impedance to the free push did not converge",
+            method,
+            len(readings),
+        )
+        return
+    tau, tau_u, zeta, rms = fit
+    span = float(np.ptp(position))
+    q["tracking_time_constant"] = Measurement(
+        tau,
+        tau_u,
+        "s",
+        f"{method}; damping ratio {zeta:.2g}, residual {rms / span:.1%} of the motion",
+        len(readings),
+    )
+
+
+def fit_impedance(
+    drive: FloatArray, position: FloatArray, period: float
+) -> tuple[float, float, float, float] | None:
+    """Fit x'' = (w - x) / a - (b / a) x' (a = m / k [s^2], b = c / k [s]) to positions
+    sampled once per period, with the drive w (the setpoint less the resisting force over k)
+    a straight line between samples; from rest at x = w = 0.
+
+    Args:
+        drive: (n,) [m] w at each sample.
+        position: (n,) [m] x at each sample.
+        period: [s] between samples.
+
+    Returns:
+        (b [s], its standard error [s], the damping ratio b / (2 sqrt(a)), the residual RMS
+        [m]), or None when the fit fails. The damping ratio is held in DAMPING_RATIO_RANGE.
+    """
+    from scipy.optimize import least_squares  # here: importing the package stays light
+
+    w = np.asarray(drive, dtype=float)
+    x = np.asarray(position, dtype=float)
+
+    def residual(p: FloatArray) -> FloatArray:
+        return _impedance_response(math.exp(p[0]), math.exp(p[1]), w, period) - x
+
+    lo, hi = (math.log(z) for z in DAMPING_RATIO_RANGE)
+    best = None
+    for b0 in (0.3 * period, period, 3.0 * period):  # lag per speed from fast to slow
+        try:
+            r = least_squares(
+                residual,
+                [math.log(b0), 0.0],
+                bounds=([math.log(1e-3 * period), lo], [math.log(30.0 * period), hi]),
+            )
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if np.isfinite(r.cost) and (best is None or r.cost < best.cost):
+            best = r
+    if best is None or not best.success:
+        return None
+    b, zeta = math.exp(best.x[0]), math.exp(best.x[1])
+    dof = max(len(x) - 2, 1)
+    rms = math.sqrt(2.0 * best.cost / len(x))
+    try:
+        cov = (2.0 * best.cost / dof) * np.linalg.inv(best.jac.T @ best.jac)
+        b_u = b * math.sqrt(max(float(cov[0, 0]), 0.0))  # d b = b d(log b)
+    except np.linalg.LinAlgError:
+        b_u = math.inf
+    return b, b_u, zeta, rms
+
+
+def _impedance_response(b: float, zeta: float, w: FloatArray, period: float) -> FloatArray:
+    """Positions at the samples of x'' = (w - x) / a - (b / a) x', a = (b / (2 zeta))^2,
+    from rest at w[0]; w a straight line between samples (exact discretization)."""
+    a = (b / (2.0 * zeta)) ** 2
+    m = np.zeros((4, 4))
+    m[0, 1] = 1.0
+    m[1, 0], m[1, 1], m[1, 2] = -1.0 / a, -b / a, 1.0 / a
+    m[2, 3] = 1.0  # the drive's slope, constant over a period
+    e = _expm(m * period)
+    phi, g0, g1 = e[:2, :2], e[:2, 2], e[:2, 3]
+    z = np.array([w[0], 0.0])
+    out = np.empty(len(w))
+    out[0] = z[0]
+    for i in range(1, len(w)):
+        z = phi @ z + g0 * w[i - 1] + g1 * (w[i] - w[i - 1]) / period
+        out[i] = z[0]
+    return out
+
+
+def _expm(m: FloatArray) -> FloatArray:
+    """The matrix exponential of a small (n, n) matrix: a Taylor series after scaling by a
+    power of two, then squared back (scipy's expm costs a millisecond or more per call on
+    a 4 x 4, and the fit calls this hundreds of times)."""
+    norm = float(np.max(np.sum(np.abs(m), axis=1)))
+    squarings = max(0, math.ceil(math.log2(norm / 0.5))) if norm > 0.5 else 0
+    a = m / (2.0**squarings)
+    term = np.eye(len(m))
+    out = term.copy()
+    for i in range(1, 13):
+        term = term @ a / i
+        out = out + term
+    for _ in range(squarings):
+        out = out @ out
+    return out

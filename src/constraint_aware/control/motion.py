@@ -1,0 +1,81 @@
+"""The executor's command geometry: the next target, the hand's rotation, the normal's sense.
+
+- `next_target`: the move along d_{t+1} from the last target. With `command_from="measured"`
+  the tracking error across the new direction (where the constraint stopped the hand) is
+  released, bounded by REANCHOR_LIMIT_STEPS step lengths so that a pose glitch can never
+  become a large command; the error along the direction and along the normal is kept, so the
+  target stays smooth along the motion and a press keeps its depth, while each step's
+  constraint force comes from that step's move alone, as in the training environment.
+- `paper_rotation`: on revolute constraints the hand turns by the rotation taking d_t to
+  d_{t+1} (paper 3.4.1).
+- `orient_normal`: the workplane normal's sense from the hinge, so that the motion turns
+  positively about it (the sense paper 3.4.1's rotation and the torque policy assume).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy.spatial.transform import Rotation
+
+from constraint_aware.control.guards import REANCHOR_LIMIT_STEPS
+from constraint_aware.errors import InvalidInputError
+from constraint_aware.geometry import FloatArray
+from constraint_aware.spatial import Pose
+
+
+def orient_normal(
+    normal: ArrayLike, direction: ArrayLike, position: ArrayLike, hinge_point: ArrayLike
+) -> FloatArray:
+    """The workplane normal (3,) oriented so that moving along `direction` (3,) at `position`
+    (3,) [m] turns positively about it around the hinge through `hinge_point` (3,) [m]. Raises
+    InvalidInputError when the direction points along the radius (no sense of rotation)."""
+    n = np.asarray(normal, dtype=float)
+    radial = np.asarray(position, dtype=float) - np.asarray(hinge_point, dtype=float)
+    sense = float(np.cross(radial, np.asarray(direction, dtype=float)) @ n)
+    if abs(sense) < 1e-9:
+        raise InvalidInputError(
+            "initial_direction: parallel to the radius from hinge_point; cannot orient the "
+            "workplane normal"
+        )
+    return n if sense > 0 else -n
+
+
+def paper_rotation(d: FloatArray, d_next: FloatArray) -> Rotation:
+    """The rotation about d_t x d_{t+1} (3,) by the angle between them (paper 3.4.1); the
+    identity for parallel directions."""
+    axis = np.cross(d, d_next)
+    s = float(np.linalg.norm(axis))
+    if s < 1e-12:
+        return Rotation.identity()
+    angle = math.atan2(s, float(d @ d_next))
+    return Rotation.from_rotvec(axis / s * angle)
+
+
+def next_target(
+    target: Pose,
+    measured: FloatArray,
+    move: FloatArray,
+    normal: FloatArray | None,
+    step_length: float,
+    reanchor: bool,
+) -> Pose:
+    """The last `target` moved by `move` (3,) [m]; with `reanchor`, plus the tracking error
+    (`measured` (3,) [m] - target) across the move and in the workplane of `normal` (3,) unit
+    (or in 3-D without one), at most REANCHOR_LIMIT_STEPS x `step_length` [m] long."""
+    if not reanchor:
+        return target.moved(move)
+    err = measured - target.position
+    if normal is not None:
+        err = err - float(err @ normal) * normal
+    n_move = float(np.linalg.norm(move))
+    if n_move > 1e-12:
+        d = move / n_move
+        err = err - float(err @ d) * d
+    limit = REANCHOR_LIMIT_STEPS * step_length
+    size = float(np.linalg.norm(err))
+    if size > limit:
+        err = err * (limit / size)
+    return Pose(target.position + err + move, target.orientation)
