@@ -473,3 +473,22 @@ class DepthCamera:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def depth_rendering_available() -> bool:
+    """Whether `DepthCamera` can render here (an OpenGL context for offscreen rendering: EGL
+    or OSMesa headless, a display otherwise), tried on a one-camera scene of 8 x 8 pixels."""
+    spec = mujoco.MjSpec()
+    small = CameraIntrinsics(width=8, height=8)
+    pose = CameraPose(np.zeros(3), np.eye(3))
+    mount = CameraMount("probe", pose, small)
+    add_camera(spec, mount)
+    spec.worldbody.add_geom(
+        type=mujoco.mjtGeom.mjGEOM_BOX, size=[1.0, 1.0, 0.01], pos=[0.0, 0.0, 1.0]
+    )
+    try:
+        with DepthCamera(spec.compile(), mount) as camera:
+            camera.true_depth(mujoco.MjData(camera.model))
+    except CapError:
+        return False
+    return True
