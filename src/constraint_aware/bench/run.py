@@ -110,6 +110,22 @@ DEPTH_RENDERING = Need(
 )
 
 
+def _mink_installed() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("mink") is not None
+
+
+#: The end-to-end section's Jaco plans its paths with mink.
+JACO_PATHS = Need("mink, for the Jaco's paths", BENCH_EXTRA, _mink_installed)
+
+
+def _end_to_end_needs(quick: bool) -> tuple[Need, ...]:
+    robots = endtoend.BENCH_ROBOTS[quick]
+    paths = (JACO_PATHS,) if "jaco" in robots else ()
+    return (DEPTH_RENDERING, *_robot_needs(*robots), *paths)
+
+
 def _robot_needs(*robots: str) -> tuple[Need, ...]:
     names = dict.fromkeys(parse_robot(r).name for r in robots)
     return tuple(ROBOT_NEEDS[n] for n in names if n in ROBOT_NEEDS)
@@ -125,7 +141,7 @@ def section_needs(cfg: ex.BenchConfig) -> dict[str, tuple[Need, ...]]:
         "headline": on_robot,
         "embodiment": _robot_needs(*EMBODIMENT_ROBOTS),
         "placement": (),
-        "end_to_end": (DEPTH_RENDERING, *_robot_needs(*endtoend.BENCH_ROBOTS[cfg.quick])),
+        "end_to_end": _end_to_end_needs(cfg.quick),
         "heatmap": on_robot,
         "sensitivity": on_robot,
         "policy_section": (),

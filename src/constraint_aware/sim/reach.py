@@ -85,6 +85,15 @@ class PlanningError(CapError):
     """No collision-free joint path to the goal was found."""
 
 
+def import_mink() -> Any:
+    """The mink module (the Jaco's paths need it); CapError saying how to install it if absent."""
+    try:
+        import mink
+    except ImportError:
+        raise CapError("the Jaco's paths need mink: pip install 'constraint-aware[arm]'") from None
+    return mink
+
+
 @dataclass(frozen=True)
 class PlannerConfig:
     """mink's differential IK as a path planner. Units in brackets."""
@@ -171,8 +180,7 @@ class JacoPlanner:
 
     def _configuration(self, q: FloatArray) -> Any:
         """mink's configuration of the planning model at arm angles `q`."""
-        import mink
-
+        mink = import_mink()
         return mink.Configuration(self.model, self._full(q))
 
     def tool_pose(self, q: FloatArray) -> Pose:
@@ -319,7 +327,7 @@ class JacoPlanner:
 
     def _joint_path(self, start: FloatArray, target: FloatArray, period: float) -> list[FloatArray]:
         """Joint angles per control period from `start` to `target` (mink, module docstring)."""
-        import mink
+        mink = import_mink()
 
         c = self.config
         # the goal's angles unwrapped next to the start's (continuous joints: no full turns)
