@@ -25,7 +25,6 @@ from constraint_aware.sim.embodiment import Embodiment
 from constraint_aware.sim.jaco import JACO_GRASPS, JacoSim
 from constraint_aware.sim.reach import (
     HANDLE_SHAPES,
-    HOOK_OPEN,
     HOOK_PRESHAPE,
     JACO_OPEN,
     JACO_PRESHAPE,
@@ -108,8 +107,8 @@ class SequenceRobot(ABC):
         """Close the hand by the force-exertion type of a `shape` handle."""
 
     @abstractmethod
-    def open_hand(self) -> None:
-        """Open the hand (release)."""
+    def open_hand(self, shape: str) -> None:
+        """Open the hand to release a `shape` handle."""
 
     def grasp_pose_at(self, point: FloatArray, orientation: Rotation, shape: str) -> Pose:
         """The tool pose that holds a `shape` handle whose grasp centre is `point` (3,) [m]
@@ -189,8 +188,10 @@ class HookHandRobot(SequenceRobot):
     def close_hand(self, shape: str) -> None:
         self._hook.set_fingers(float(HANDLE_GRASPS[_check_shape(shape)]["finger_angle"]))
 
-    def open_hand(self) -> None:
-        self._hook.set_fingers(HOOK_OPEN)
+    def open_hand(self, shape: str) -> None:
+        # back to the shape the hand came in with: that way out is known to be free, and
+        # fingers opened wider around a knob swing into the crank's arm
+        self._hook.set_fingers(HOOK_PRESHAPE[_check_shape(shape)])
 
     def home_pose(self) -> Pose:
         return self._home
@@ -217,7 +218,8 @@ class JacoRobot(SequenceRobot):
     def close_hand(self, shape: str) -> None:
         self._jaco.set_fingers(JACO_GRASPS[_check_shape(shape)].finger_target)
 
-    def open_hand(self) -> None:
+    def open_hand(self, shape: str) -> None:
+        _check_shape(shape)
         self._jaco.set_fingers(JACO_OPEN)
         self.planner.fingers = JACO_OPEN
 

@@ -18,7 +18,8 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
    report contact.
 5. manipulate: the executor (control/executor.py) with the corrected skill's estimates in
    charge, exactly as `lfo.execute` runs it, without the simulator's task monitor.
-6. release: the wrist rests where it is, the hand opens.
+6. release: the wrist rests where it is, the hand opens (the hook hand: to the shape it came
+   in with, a way out known to be free).
 7. retreat: back along the hand's approach axis by `retreat`.
 8. home: back to the home pose (the Jaco around the object, which it believes moved as far as
    its own hand did).
@@ -414,7 +415,7 @@ def _run_phases(
     phase = record.phase("release")
     phase.outcome = "running"
     robot.hold()
-    robot.open_hand()
+    robot.open_hand(shape)
     for _ in range(settle):
         robot.command_pose(robot.commanded_pose())
         robot.advance()
