@@ -110,6 +110,12 @@ class SequenceRobot(ABC):
     def open_hand(self, shape: str) -> None:
         """Open the hand to release a `shape` handle."""
 
+    def grasp_touches(self, shape: str) -> bool:
+        """Whether the closed hand touches a `shape` handle it holds (its contact sensing
+        must then report contact before the manipulation); True unless the hand says."""
+        _check_shape(shape)
+        return True
+
     def grasp_pose_at(self, point: FloatArray, orientation: Rotation, shape: str) -> Pose:
         """The tool pose that holds a `shape` handle whose grasp centre is `point` (3,) [m]
         with the hand at `orientation`."""
@@ -187,6 +193,11 @@ class HookHandRobot(SequenceRobot):
 
     def close_hand(self, shape: str) -> None:
         self._hook.set_fingers(float(HANDLE_GRASPS[_check_shape(shape)]["finger_angle"]))
+
+    def grasp_touches(self, shape: str) -> bool:
+        # a bar is hooked: straight fingers behind it, with play, touch it only when the hand
+        # pulls (a bar outside the hook shows as the executor's lost-contact stop)
+        return _check_shape(shape) != "bar"
 
     def open_hand(self, shape: str) -> None:
         # back to the shape the hand came in with: that way out is known to be free, and

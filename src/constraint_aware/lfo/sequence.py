@@ -15,7 +15,9 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
    `overshoot` past the perceived surface and stop at contact.
 4. grasp: the hand closes by the force-exertion type; a passive closure presses
    `press_depth` on; the wrist then rests where it settled (no preload) and the hand must
-   report contact.
+   report contact, unless it holds the handle with play (`grasp_touches`: the hook hand's
+   bar, touched only when the hand pulls; a bar outside the hook shows in the manipulation
+   as the executor's lost-contact stop).
 5. manipulate: the executor (control/executor.py) with the corrected skill's estimates in
    charge, exactly as `lfo.execute` runs it, without the simulator's task monitor.
 6. release: the wrist rests where it is, the hand opens (the hook hand: to the shape it came
@@ -91,7 +93,8 @@ class SequenceConfig:
     leave: MoveConfig = field(
         default_factory=lambda: MoveConfig(speed=0.05, contact_limit=6.0, position_tolerance=0.02)
     )
-    hook_home_back: float = 0.30  # [m] the hook hand's home: back along the approach ...
+    hook_home_back: float = 0.30  # [m] the hook hand's home: back along the approach from
+    # the farthest the demonstrated motion brings the handle toward the hand ...
     hook_home_up: float = 0.10  # [m] ... and up
     jaco_home_forward: float = -0.10  # [m] the Jaco's home tool point: from its base toward
     jaco_home_up: float = 0.50  # [m] the object, and up
@@ -186,6 +189,21 @@ class Station:
     home_joints: FloatArray | None = None
 
 
+def _toward_hand(skill: SkillParameters, approach: FloatArray, samples: int = 16) -> float:
+    """[m] how far the demonstrated motion brings the handle toward the hand (against
+    `approach`, (3,) unit), at most: a drawer's travel; 0 for motions away from the hand."""
+    from constraint_aware.sim.reach import believed_handle
+
+    believed = scene_from_skill(skill).task
+    goal = float(skill.goal or 0.0)
+    start = believed_handle(believed, 0.0).mean(axis=0)
+    along = [
+        float((start - believed_handle(believed, q).mean(axis=0)) @ approach)
+        for q in np.linspace(0.0, goal, samples)
+    ]
+    return max(0.0, *along)
+
+
 def station_for(
     robot: str, skill: SkillParameters, config: SequenceConfig | None = None
 ) -> Station:
@@ -197,7 +215,8 @@ def station_for(
     up = np.array([0.0, 0.0, 1.0])
     orientation = Rotation.from_matrix(frame.rotation)
     if spec.name == "hook-hand":
-        home = frame.origin - cfg.hook_home_back * frame.rotation[:, 2] + cfg.hook_home_up * up
+        back = cfg.hook_home_back + _toward_hand(skill, frame.rotation[:, 2])
+        home = frame.origin - back * frame.rotation[:, 2] + cfg.hook_home_up * up
         return Station(spec.name, camera, home_pose=Pose(home, orientation))
     from constraint_aware.sim.reach import JacoPlanner, choose_base, facing, home_pose
 
@@ -383,7 +402,7 @@ def _run_phases(
         robot.hold()  # no press: the wrist rests where closing left it (no preload)
         target = robot.commanded_pose()
     # a press stays commanded: the executor starts from the pressing setpoint (as at reset)
-    if not (touched or robot.grasp_contact()):
+    if robot.grasp_touches(shape) and not (touched or robot.grasp_contact()):
         return _fail(robot, record, phase, "no_contact", "the closed hand touches nothing")
     robot.ready_for_manipulation()
     done(phase)
