@@ -262,6 +262,45 @@ def test_a_fault_in_a_phase_stops_the_sequence_safely_with_its_record() -> None:
     assert holds  # the robot was told to hold
 
 
+def test_a_bar_outside_the_hook_stops_the_manipulation_on_lost_contact() -> None:
+    # the hook hand holds a bar with play (no contact needed before the pull): a contact
+    # point perceived 4 cm in front of the bar closes the hook in front of it, and the
+    # executor, feeling nothing, must stop instead of reporting success
+    from constraint_aware.lfo.grasp_data import contact_label
+    from constraint_aware.lfo.sequence import run_in_simulation
+    from constraint_aware.recognizer import Recognition
+
+    place, skill = _offset_drawer()
+
+    class InFront:
+        name = "in-front"
+
+        def recognize(self, height: Any, frame: Any, shape: str) -> Recognition:
+            point, approach = contact_label(place.task, shape, np.asarray(skill.start_position))
+            return Recognition(point - 0.04 * approach, approach, self.name)
+
+    result = run_in_simulation(skill, place.task, "hook-hand", recognizer=InFront())
+    record = result.record
+    assert not record.success and record.failed_phase == "manipulate"
+    assert record.phase("grasp").outcome == "ok"
+    assert record.manipulation is not None and record.manipulation.outcome == "contact_lost"
+    assert abs(float(result.sim.progress())) < 0.01  # the drawer was not moved
+
+
+def test_the_hook_hands_home_is_clear_of_the_opened_drawer() -> None:
+    from constraint_aware.lfo.perception import nominal_frame
+    from constraint_aware.lfo.sequence import SequenceConfig, station_for
+
+    _, skill = _offset_drawer()
+    station = station_for("hook-hand", skill)
+    _, frame = nominal_frame(skill)
+    assert station.home_pose is not None
+    back = float((frame.origin - station.home_pose.position) @ frame.rotation[:, 2])
+    travel = float(skill.goal or 0.0)
+    assert travel > 0.1
+    assert back == pytest.approx(SequenceConfig().hook_home_back + travel, abs=0.02)
+
+
 # --- the command line -------------------------------------------------------------------------
 def test_cap_lfo_executes_the_sequence_from_home(tmp_path: Any) -> None:
     from pathlib import Path
@@ -284,6 +323,16 @@ def test_cap_lfo_executes_the_sequence_from_home(tmp_path: Any) -> None:
         (["train-grasp", "--data", "/nonexistent.npz"], "--data"),
         (["lfo", "x.json", "--execute", "--video", "run.avi"], "suffix '.avi'"),
         (["lfo", "x.json", "--execute", "--recognizer", "oracle"], "invalid choice"),
+        (["lfo", "x.json", "--recognizer", "cnn"], "--recognizer without --execute"),
+        (["lfo", "x.json", "--video", "run.gif"], "--video without --execute"),
+        (
+            ["lfo", "x.json", "--execute", "--start", "at-grasp", "--video", "run.gif"],
+            "--video with --start at-grasp",
+        ),
+        (
+            ["lfo", "x.json", "--execute", "--start", "at-grasp", "--recognizer", "cnn"],
+            "--recognizer with --start at-grasp",
+        ),
     ],
 )
 def test_cli_input_errors_exit_2_naming_the_flag(

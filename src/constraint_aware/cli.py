@@ -875,10 +875,6 @@ def cmd_train_grasp(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     require_extra("torch", "train", "cap train-grasp")
-    from constraint_aware.lfo.grasp_training import train_grasp
-    from constraint_aware.recognizer import shipped_recognizer_path
-    from constraint_aware.training.grasp import GraspTrainConfig
-
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
     counts = {
         "--scenes": args.scenes,
@@ -893,6 +889,11 @@ def cmd_train_grasp(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--seed {args.seed}: must be >= 0")
     if args.data and not Path(args.data).is_file():
         raise InvalidInputError(f"--data {args.data!r}: no such file")
+    # torch loads with these, after the input is checked
+    from constraint_aware.lfo.grasp_training import train_grasp
+    from constraint_aware.recognizer import shipped_recognizer_path
+    from constraint_aware.training.grasp import GraspTrainConfig
+
     config = GraspTrainConfig(epochs=args.epochs, seed=args.seed)
     out = Path(args.out or f"runs/train-grasp-seed{args.seed}")
     out_console = human(args)
