@@ -26,7 +26,6 @@ from constraint_aware.sim.jaco import JACO_GRASPS, JacoSim
 from constraint_aware.sim.reach import (
     HANDLE_SHAPES,
     HOOK_PRESHAPE,
-    JACO_OPEN,
     JACO_PRESHAPE,
     JacoPlanner,
     PlanningError,
@@ -230,9 +229,10 @@ class JacoRobot(SequenceRobot):
         self._jaco.set_fingers(JACO_GRASPS[_check_shape(shape)].finger_target)
 
     def open_hand(self, shape: str) -> None:
-        _check_shape(shape)
-        self._jaco.set_fingers(JACO_OPEN)
-        self.planner.fingers = JACO_OPEN
+        # back to the shape the hand came in with: a fist opened on a plate would push its
+        # fingers into it (9.5 N at the retreat's first period)
+        self._jaco.set_fingers(JACO_PRESHAPE[_check_shape(shape)])
+        self.planner.fingers = JACO_PRESHAPE[shape]
 
     def set_posture(self, q: FloatArray) -> None:
         self._jaco.set_posture(q)

@@ -20,8 +20,8 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
    as the executor's lost-contact stop).
 5. manipulate: the executor (control/executor.py) with the corrected skill's estimates in
    charge, exactly as `lfo.execute` runs it, without the simulator's task monitor.
-6. release: the wrist rests where it is, the hand opens (the hook hand: to the shape it came
-   in with, a way out known to be free).
+6. release: the wrist rests where it is, the hand opens to the shape it came in with (a way
+   out known to be free).
 7. retreat: back along the hand's approach axis by `retreat`.
 8. home: back to the home pose (the Jaco around the object, which it believes moved as far as
    its own hand did).

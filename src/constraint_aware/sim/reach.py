@@ -40,14 +40,14 @@ from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose
 
 HANDLE_SHAPES = ("bar", "pole", "plate", "knob")
-#: [rad] the hook hand's fingers before the approach (+ closes, - opens): open around a bar,
-#: a pole and a knob; straight (the tip pads press) over a plate.
+#: [rad] the hook hand's fingers before the approach and after the release (+ closes,
+#: - opens): open around a bar, a pole and a knob; straight (the tip pads press) over a plate.
 HOOK_PRESHAPE = {"bar": -0.9, "pole": -0.9, "plate": 0.0, "knob": -0.6}
-#: [rad] the Jaco's fingers before the approach (0 open, 1.5 closed): open around a bar or a
-#: pole, the grasp's own start shape over a plate (a fist) and a knob.
+#: [rad] the Jaco's fingers before the approach and after the release (0 open, 1.5
+#: closed): open around a bar or a pole, the grasp's own start shape over a plate (a fist)
+#: and a knob.
 JACO_PRESHAPE = {"bar": 0.2, "pole": 0.3, "plate": JACO_GRASPS["plate"].finger_start,
                  "knob": JACO_GRASPS["knob"].finger_start}  # fmt: skip
-JACO_OPEN = 0.2  # [rad] released
 
 
 def believed_handle(task: TaskConfig, joint_position: float) -> FloatArray:
