@@ -874,7 +874,6 @@ def _train_grasp_parser(p: argparse.ArgumentParser) -> None:
 def cmd_train_grasp(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    require_extra("torch", "train", "cap train-grasp")
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
     counts = {
         "--scenes": args.scenes,
@@ -890,6 +889,7 @@ def cmd_train_grasp(args: argparse.Namespace) -> int:
     if args.data and not Path(args.data).is_file():
         raise InvalidInputError(f"--data {args.data!r}: no such file")
     # torch loads with these, after the input is checked
+    require_extra("torch", "train", "cap train-grasp")
     from constraint_aware.lfo.grasp_training import train_grasp
     from constraint_aware.recognizer import shipped_recognizer_path
     from constraint_aware.training.grasp import GraspTrainConfig
