@@ -88,9 +88,9 @@ def test_an_explicit_robot_without_its_models_is_refused_before_anything_runs(
 
     monkeypatch.setitem(sys.modules, "dm_control", None)
     out = tmp_path / "out"
-    assert main(["bench", "--quick", "--out", str(out), "--robot", "jaco:period=0.05"]) == 2
+    assert main(["bench", "--quick", "--out", str(out), "--robot", "jaco:period=0.08"]) == 2
     err = capsys.readouterr().err
-    assert "--robot jaco:period=0.05" in err and "constraint-aware[bench]" in err
+    assert "--robot jaco:period=0.08" in err and "constraint-aware[bench]" in err
     assert not out.exists()
 
 

@@ -11,7 +11,7 @@ import pytest
 
 import constraint_aware.control.classical as classical
 from constraint_aware.control.classical import ClassicalController, ClassicalGains
-from constraint_aware.control.controllers import ControlInput
+from constraint_aware.control.interface import INPUT_NAMES, ControlInput
 from constraint_aware.geometry import angle_deg, rotate_about, unit
 
 K = 2000.0  # [N/m] compliance between the commanded and the constrained position
@@ -97,3 +97,26 @@ def test_gains_have_units_and_a_source() -> None:
     for name in ClassicalGains.__dataclass_fields__:
         line = next(ln for ln in source.splitlines() if ln.strip().startswith(f"{name}:"))
         assert "[" in line and "]" in line, f"{name} has no unit"
+
+
+def test_its_stages_say_what_they_need() -> None:
+    ctrl = ClassicalController(w_d=0.2)
+    assert ctrl.stage_inputs("prismatic") == {"workplane_projection": ("workplane_normal",)}
+    revolute = ctrl.stage_inputs("revolute")
+    assert revolute["rotational_part"] == ("rotation_rate",)
+    assert all(set(v) <= set(INPUT_NAMES) for v in revolute.values())
+
+
+def test_the_controller_modules_import_no_registry() -> None:
+    """The classical controller and the default controller's steadying import only the
+    interface, never `control.controllers` (which builds them by name): no import cycle."""
+    import ast
+
+    import constraint_aware.control.steady as steady
+
+    for module in (classical, steady):
+        tree = ast.parse(inspect.getsource(module))
+        imported = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)} | {
+            a.name for node in ast.walk(tree) if isinstance(node, ast.Import) for a in node.names
+        }
+        assert "constraint_aware.control.controllers" not in imported, module.__name__

@@ -897,7 +897,7 @@ def test_inputs_and_stages_survive_json(tmp_path: Path) -> None:
 )
 def test_a_bad_stage_declaration_is_named_and_the_robot_held(answer: object) -> None:
     class BadStages(FixedDirection):
-        def stage_inputs(self, constraint_type: str) -> object:
+        def stage_inputs(self, constraint_type: str) -> object:  # type: ignore[override]
             return answer
 
     robot = Holding()

@@ -1,4 +1,4 @@
-"""The bench's policy section (issue 9): default, default (raw), paper, classical, projection.
+"""The bench's policy section: default, default (raw), paper, classical, projection.
 
 Typed from end to end: experiments produce `RunResult`s, `summarize` groups them by their own
 keys (never by the order runs were generated) into `CellSummary`s, and the report reads those.

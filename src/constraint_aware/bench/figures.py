@@ -9,6 +9,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.image import imread
 
+from constraint_aware.bench.ablation import FULL, AblationSection, without
 from constraint_aware.bench.experiments import FIG6, FIG11, FIG12
 from constraint_aware.control.plots import plot_trajectory
 from constraint_aware.control.record import RunRecord
@@ -220,6 +221,39 @@ def fig_peak_forces(out: Path, results: dict[str, Any]) -> str:
     return _finish(fig, out / "fig_peak_forces.png")
 
 
+def fig_ablation(out: Path, results: dict[str, Any]) -> str:
+    """Per set, the change of each stage-off row's median mean |F| against the full
+    controller's [N] (task columns); a change in successes is written in the cell."""
+    sec = AblationSection.from_dict(results["ablation"])
+    sets = list(dict.fromkeys(c.set for c in sec.cells))
+    stage_rows = [r for r in sec.rows if r.startswith(without(""))]
+    fig = Figure(figsize=(max(6.0, 4.2 * len(sets)), 0.42 * len(stage_rows) + 1.8))
+    axes = np.atleast_1d(fig.subplots(1, len(sets), sharey=True))
+    for ax, name in zip(axes, sets, strict=True):
+        by = {(c.row, c.task): c for c in sec.cells if c.set == name}
+        tasks = list(dict.fromkeys(c.task for c in sec.cells if c.set == name))
+        grid = np.full((len(stage_rows), len(tasks)), np.nan)
+        for i, row in enumerate(stage_rows):
+            for j, task in enumerate(tasks):
+                cell, full = by.get((row, task)), by.get((FULL, task))
+                if cell is None or full is None:
+                    continue
+                grid[i, j] = cell.median_mean_force_N - full.median_mean_force_N
+                if cell.successes != full.successes:
+                    ax.text(j, i, f"{cell.successes - full.successes:+d}", ha="center",
+                            va="center", fontsize=7)  # fmt: skip
+        span = max(float(np.nanmax(np.abs(grid))) if np.any(np.isfinite(grid)) else 0.0, 0.2)
+        im = ax.imshow(grid, cmap="RdBu_r", vmin=-span, vmax=span, aspect="auto")
+        ax.set_xticks(range(len(tasks)), [t.split("-")[0] for t in tasks], fontsize=7)
+        ax.set_title(name, fontsize=9)
+        fig.colorbar(im, ax=ax, fraction=0.05)
+    axes[0].set_yticks(
+        range(len(stage_rows)), [r.removeprefix(without("")) for r in stage_rows], fontsize=7
+    )
+    fig.suptitle("Stage off minus full: median mean |F| [N] (red: higher without it)", fontsize=10)
+    return _finish(fig, out / "fig_ablation.png")
+
+
 def draw_all(out: Path, results: dict[str, Any]) -> dict[str, str]:
     """Every figure the results allow; returns {figure key: file name}."""
     figs = {
@@ -235,4 +269,6 @@ def draw_all(out: Path, results: dict[str, Any]) -> dict[str, str]:
         figs["heatmap"] = fig_heatmap(out, results)
     if "sensitivity" in results:
         figs["sensitivity"] = fig_sensitivity(out, results)
+    if "ablation" in results:
+        figs["ablation"] = fig_ablation(out, results)
     return figs

@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from constraint_aware.bench.ablation import FULL, AblationCell, AblationSection, beyond_noise
 from constraint_aware.bench.analysis import CellSummary, PolicySection
 from constraint_aware.bench.endtoend import report_lines as end_to_end_report_lines
 from constraint_aware.bench.placement import report_lines as placement_report_lines
@@ -255,6 +256,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
         add("")
     if "policy_section" in results:
         lines.extend(policy_section_lines(PolicySection.from_dict(results["policy_section"])))
+    if "ablation" in results:
+        lines.extend(ablation_lines(AblationSection.from_dict(results["ablation"]), figures))
     if results.get("faults"):
         _faults_section(add, results["faults"], results["learning"]["policy"])
     path = out / "report.md"
@@ -293,10 +296,11 @@ def policy_section_lines(sec: PolicySection) -> list[str]:
         f"({_f(sec.sensor_noise_N, 1)} N per axis: {_f(sec.threshold_N, 1)} N), not a hand-set "
         "one. `default` is the default policy as controller `policy` runs it: its action "
         "averaged with its mirror image about the workplane normal, inside SteadyDirection "
-        "(docs/forces.md): a confidence ramp on |F|, overshoot damping and, on revolute "
-        "joints, the rotation rate v / r the classical controller is also given. The hand "
-        "turns at that rate from the first move; the damping and d's turn with the path act "
-        "only once a reading has located the path (a force across d above the dead band). "
+        "(docs/design/default-controller.md): the start's reading scaled from the hand's "
+        "travel, the part of the last reading a reading still carries removed, overshoot "
+        "damping and, on revolute joints, the rotation rate v / r the classical controller is "
+        "also given. The hand turns at that rate from the first move; d turns with the path "
+        "once a reading has located it (a force across d above the dead band). "
         "`default + probe` is the same after a setup probe on a twin of the task (`cap run "
         "--probe`, control.probe): the arm stiffness the wrist sees and the grasp's play, "
         "which `policy` adds back on its first reading across d. "
@@ -317,6 +321,61 @@ def policy_section_lines(sec: PolicySection) -> list[str]:
     )
     lines.append("")
     return lines
+
+
+def ablation_lines(sec: AblationSection, figures: dict[str, str] | None = None) -> list[str]:
+    """The ablation section: per set, one row per stage of controller "policy" switched off
+    (everything else on) beside the full controller and the paper's rule alone."""
+    b = sec.benchmark_seeds
+    lines = [
+        "## The default controller's stages, each switched off\n",
+        "Controller `policy` with one stage off and every other stage on (`policy without "
+        "STAGE`), beside the full controller and `policy-raw` (the paper's rule alone; "
+        "docs/design/default-controller.md says what each stage does). Sensor noise "
+        f"{_f(sec.sensor_noise_N, 1)} N per axis, the dead band derived from it. This bench "
+        "runs "
+        + "; ".join(f"{name}: {what}" for name, what in sec.seeds.items())
+        + f". The full sets ({b['suite']} suite seeds per task on each robot, {b['noise']} "
+        f"noise seeds per paper offset, {b['map']} seeds per resistance-map condition) are "
+        "`benchmarks/ablation.py`'s; the run that decided which stages stay is "
+        "`benchmarks/results/ablation_every_stage.json`. Cells: successes / "
+        "runs, median peak |F| [N], median of the runs' mean |F| [N]; **bold**: beyond noise "
+        f"({_f(sec.noise_percent, 0)} % or {_f(sec.noise_floor_N, 1)} N, whichever is larger, "
+        "or any change in successes) against the full controller; `-`: not run, the "
+        "stage cannot act there (the known rotation on a prismatic joint; the play "
+        "compensation, which needs the play a setup probe measures, has its numbers in the "
+        "benchmark's results).\n",
+    ]
+    if figures and "ablation" in figures:
+        lines.append(f"![ablation]({figures['ablation']})\n")
+    for set_name in dict.fromkeys(c.set for c in sec.cells):
+        cells = [c for c in sec.cells if c.set == set_name]
+        tasks = list(dict.fromkeys(c.task for c in cells))
+        by = {(c.row, c.task): c for c in cells}
+        lines.append(f"### {set_name}\n")
+        lines.append("| row | " + " | ".join(tasks) + " |")
+        lines.append("|---" * (len(tasks) + 1) + "|")
+        for row in sec.rows:
+            entries = [
+                _ablation_cell(by[(row, t)], by.get((FULL, t))) if (row, t) in by else "-"
+                for t in tasks
+            ]
+            if any(e != "-" for e in entries):
+                lines.append(f"| {row} | " + " | ".join(entries) + " |")
+        lines.append("")
+    return lines
+
+
+def _ablation_cell(c: AblationCell, full: AblationCell | None) -> str:
+    text = f"{c.successes}/{c.n}, {_f(c.median_peak_force_N, 2)}, {_f(c.median_mean_force_N, 2)}"
+    if full is None or c.row == FULL:
+        return text
+    differs = (
+        c.successes != full.successes
+        or beyond_noise(c.median_peak_force_N, full.median_peak_force_N)
+        or beyond_noise(c.median_mean_force_N, full.median_mean_force_N)
+    )
+    return f"**{text}**" if differs else text
 
 
 def _fmt_level(v: float) -> str:

@@ -22,6 +22,7 @@ import numpy as np
 
 from constraint_aware.bench import endtoend, placement
 from constraint_aware.bench import experiments as ex
+from constraint_aware.bench.ablation import ablation_section
 from constraint_aware.bench.analysis import policy_section
 from constraint_aware.bench.embodiment import ROBOTS as EMBODIMENT_ROBOTS
 from constraint_aware.bench.embodiment import for_bench as embodiment_for_bench
@@ -384,6 +385,7 @@ def _run_bench(
         results["sensitivity"] = sens
         all_runs += hm_runs + sens_runs
     results["policy_section"] = policy_section(quick).to_dict()
+    results["ablation"] = ablation_section(quick, cfg.workers).to_dict()
     results["faults"] = fault_suite(
         FAULT_BENCH_TASKS_QUICK if quick else tuple(TASKS),
         QUICK_FAULTS if quick else tuple(FAULTS),

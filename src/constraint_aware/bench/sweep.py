@@ -89,6 +89,11 @@ def default_workers(n_runs: int) -> int:
 _CURRENT_EXECUTOR: ContextVar[Executor | None] = ContextVar("sweep_executor", default=None)
 
 
+def current_executor() -> Executor | None:
+    """The executor set by `use_executor` for this context, or None (the local pool)."""
+    return _CURRENT_EXECUTOR.get()
+
+
 @contextlib.contextmanager
 def use_executor(executor: Executor | None) -> Iterator[None]:
     """Every `run_many` inside the block runs on `executor` (None: the local pool)."""

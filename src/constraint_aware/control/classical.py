@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from constraint_aware.control.controllers import ControlInput
+from constraint_aware.control.interface import ControlInput
 from constraint_aware.geometry import FloatArray, unit
 
 
@@ -125,6 +125,14 @@ class ClassicalController:
     def hand_rotation(self) -> Rotation | None:
         """This step's hand rotation from the rotational part, or None (executor's rule)."""
         return self._rotation
+
+    def stage_inputs(self, constraint_type: str) -> dict[str, tuple[str, ...]]:
+        """The force and t^ are projected onto the workplane (needs its normal); on a
+        revolute joint the rotational part needs the known rotation rate w_d."""
+        stages: dict[str, tuple[str, ...]] = {"workplane_projection": ("workplane_normal",)}
+        if constraint_type == "revolute":
+            stages["rotational_part"] = ("rotation_rate",)
+        return stages
 
     @property
     def estimate(self) -> FloatArray:

@@ -102,7 +102,7 @@ class RunSpec:
     # ExecutorConfig fields as `executor__FIELD` or `executor__GROUP__FIELD`
     controller_params: tuple[tuple[str, float], ...] = ()  # e.g. classical gains
     robot: str = DEFAULT_ROBOT  # embodiment spec (sim.embodiment): "hook-hand", "jaco",
-    # optionally with variants: "jaco:stiffness=5000,period=0.05"
+    # optionally with variants: "jaco:stiffness=2000,period=0.08"
     probe: bool = False  # probe at setup (control.probe) on a twin of this task (same
     # robot, object, grasp and seed), then run on a fresh grasp: the arm stiffness measured
     # at the wrist replaces the robot's report (kept, with a note, when the probe cannot

@@ -94,7 +94,7 @@ class SingleSystemBatch:
         axis = random_perpendicular(rng, normal)
         magnitude = rng.uniform(*c.offset_deg, size=n)
         sign = np.where(rng.random(n) < 0.5, -1.0, 1.0)
-        friction = rng.uniform(*c.friction, size=n)  # draw order as before issue 9: same streams
+        friction = rng.uniform(*c.friction, size=n)  # drawn before the resistance: stable streams
         if c.stiffness_log_uniform:  # one draw per episode either way: the same streams
             low, high = math.log(c.stiffness[0]), math.log(c.stiffness[1])
             stiffness = np.exp(rng.uniform(low, high, size=n))

@@ -32,9 +32,10 @@ class EnvConfig:
     Every range is (low, high), sampled uniformly once per episode. The defaults are the
     paper's environment (no resistance along the joint: assumption 3).
 
-    The object's own resistance along the joint (issue 9) is drawn per episode, as a fraction
-    of the step force k*delta (the force of one fully blocked step; k in `stiffness` and
-    delta = `step_length` give 10-30 N by default), so it scales with the robot:
+    The object's own resistance along the joint (an addition to the paper's environment) is
+    drawn per episode, as a fraction of the step force k*delta (the force of one fully blocked
+    step; k in `stiffness` and delta = `step_length` give 10-30 N by default), so it scales
+    with the robot:
 
     - `dry_friction`: constant along-axis friction R0 [fraction of k*delta], plus
       `dry_friction_abs` [N] on top (an absolute floor that does not scale with the arm);
@@ -148,7 +149,7 @@ class EnvConfig:
         return cls(**kwargs)
 
 
-#: The resistance the default policy is trained with (issue 9; ranges from the feasibility
+#: The resistance the default policy is trained with (ranges from the feasibility
 #: study in notes/resistance.md, extended by damping, inertia and preload release). With
 #: k*delta in 10-30 N: R0 up to 0.3 k*delta (3-9 N) plus up to 1 N, c*v_nom and m*a_nom up to
 #: 0.1 k*delta each (1-3 N), a released preload up to 0.3 k*delta (3-9 N). The sum stays below

@@ -1,18 +1,17 @@
-"""Where the policy's contact force comes from, and what steadies it (issue 9's force gaps).
+"""Where the policy's contact force comes from, and what steadies it: the force study's runs.
 
 Typed from end to end: `run_variant` runs one controller variant on one `analysis.Condition`
 and returns a `RunDiagnosis` (the run's outcome and forces, split into the start transient and
 the steady part, and the steady direction error: its signed mean is the tracking lag, the
 step-to-step turn is the zig-zag); `summarize` groups them by their own keys into
-`VariantSummary`s. `benchmarks/forces.py` runs the study and writes JSON; the report reads it.
+`VariantSummary`s. `benchmarks/studies/forces.py` runs the study and writes JSON.
 
 Variants (`VARIANTS`): the default policy alone (controller "policy-raw"), the classical
-controller (unchanged gains), the projection controller, `SteadyDirection` around the policy
-with each of its parts alone and together (together, with the mirror-averaged action:
-controller "policy"; and as stop 17 shipped it, without the mirror average), with one
-rejected overshoot test, and around the projection controller (the wrapper is not specific
-to the policy); and two rejected candidates kept for their numbers: a curvature
-feed-forward estimated from d's own recent turns, and two policy sub-steps per control step.
+controller (unchanged gains), the projection controller, the default controller "policy"
+(the policy inside `SteadyDirection`) whole and with each stage off, `SteadyDirection` around
+the projection controller (it is not specific to the policy); and two candidates that lost,
+kept for their numbers: a curvature feed-forward estimated from d's own recent turns, and
+two policy sub-steps per control step.
 
 References (`REFERENCES`), which read the simulator's admissible direction and so are not
 controllers a robot can run: d turned onto it (or short of it, or past it) from the first
@@ -39,19 +38,18 @@ from constraint_aware import deadband
 from constraint_aware.bench.analysis import CellKey, Condition, group_cells, prepare_condition
 from constraint_aware.control.classical import ClassicalGains
 from constraint_aware.control.controllers import (
-    HAND_SMOOTHING,
+    POLICY_STAGES,
     ControlInput,
     DirectionController,
     PolicyController,
     ProjectionController,
-    SteadyConfig,
-    SteadyDirection,
     make_controller,
 )
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.record import RunRecord, StepRecord
 from constraint_aware.control.robot import reported_stiffness
 from constraint_aware.control.simulate import RunSpec, probed_config
+from constraint_aware.control.steady import HAND_SMOOTHING, SteadyDirection
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.figio import new_figure, save_figure
 from constraint_aware.geometry import FloatArray, turn_vector, unit
@@ -121,14 +119,18 @@ class GroundTruthDirection:
         return self.hand.hand_rotation()
 
 
-def _steady(config: SteadyConfig, inner: str = "policy", mirror: bool = True) -> ControllerFactory:
+def _steady_projection(
+    policy: ConstraintAwarePolicy, rate: float | None, normal: FloatArray
+) -> DirectionController:
+    """The projection rule inside the same steadying (it is not specific to the policy)."""
+    return SteadyDirection(ProjectionController(), rate)
+
+
+def _without(stage: str) -> ControllerFactory:
     def build(
         policy: ConstraintAwarePolicy, rate: float | None, normal: FloatArray
     ) -> DirectionController:
-        base: DirectionController = (
-            PolicyController(policy, mirror) if inner == "policy" else ProjectionController()
-        )
-        return SteadyDirection(base, rate, config)
+        return make_controller("policy", policy, rate, normal, {stage: 0.0})
 
     return build
 
@@ -211,57 +213,28 @@ def _wrapped(kind: str) -> ControllerFactory:
     return build
 
 
-_OFF = SteadyConfig(
-    confidence_ramp=False, overshoot_damping=False, rotation_feedforward=False,
-    travel_scaling=False, carry_removal=False,
-)  # fmt: skip
-#: the wrapper as stop 29 shipped it: every located reading as read after the start's
-#: (no carry removal)
-STOP29 = SteadyConfig(carry_removal=False)
-#: the wrapper as stop 28 shipped it: the start's reading as it is too (no travel scaling)
-STOP28 = dataclasses.replace(STOP29, travel_scaling=False)
-#: the wrapper as it was until stop 22: nothing waits for a reading that locates the path (the
-#: known rotation fed into d at once, every proposal's reversal damped)
-_UNLOCATED = dataclasses.replace(STOP28, wait_for_location=False, reversals_once_located=False)
-
 #: The variant that probes a twin of its condition at setup and runs with what the probe
 #: measured (control.simulate.probed_config), as `cap run --probe` does.
 PROBED = "steady + probe"
 
-#: label -> controller factory. "default" is the default policy alone (controller "policy-raw"),
-#: "steady" the full wrapper around it with the mirror-averaged action (controller "policy",
-#: the library's default); "steady: stop 17" is that controller as stop 17 shipped it (no
-#: mirror average), "steady: feed-forward at once" as stop 22 shipped it (the known rotation
-#: fed into d before a reading has located the path), "steady: reversals before location" as
-#: stop 24 shipped it (the overshoot damping tracking the proposals of readings that had not
-#: located the path), "steady: stop 28" as stop 28 shipped it (the start's reading not scaled
-#: from the hand's travel), "steady: stop 29" as stop 29 shipped it (no carry removal),
-#: "steady: strict reversal" a rejected overshoot test and "steady:
-#: lag inversion" the rejected lag inversion (SteadyConfig; both measured on stop 28's).
+
+def without(stage: str) -> str:
+    """The label of controller "policy" with one stage off (`POLICY_STAGES`)."""
+    return f"steady without {stage}"
+
+
+#: label -> controller factory. "default" is the default policy alone (controller
+#: "policy-raw"), "steady" the full controller "policy" (the mirror-averaged action inside
+#: `SteadyDirection`), "steady without STAGE" the same with one stage off.
 VARIANTS: dict[str, ControllerFactory] = {
     "default": _named("policy-raw"),  # the default policy alone (paper 3.3's rule)
     "classical": _named("classical"),
-    "steady": _named("policy"),  # mirrored, inside SteadyDirection: controller "policy"
-    "steady: stop 17": _steady(_UNLOCATED, mirror=False),  # without the mirror average
-    # stop 22's: the known rotation fed into d from the second reading on, located or not
-    "steady: feed-forward at once": _steady(_UNLOCATED),
-    # stop 24's: every proposal tracked by the overshoot damping, located or not
-    "steady: reversals before location": _steady(
-        dataclasses.replace(STOP28, reversals_once_located=False)
-    ),
-    "steady: stop 28": _steady(STOP28),  # the start's reading as it is
-    "steady: stop 29": _steady(STOP29),  # every located reading as read
-    "steady: strict reversal": _steady(dataclasses.replace(STOP28, strict_reversal=True)),
-    "steady: lag inversion": _steady(dataclasses.replace(STOP28, lag_inversion=True)),
-    "steady: ramp only": _steady(dataclasses.replace(_OFF, confidence_ramp=True)),
-    "steady: damping only": _steady(dataclasses.replace(_OFF, overshoot_damping=True)),
-    "steady: known rate only": _steady(dataclasses.replace(_OFF, rotation_feedforward=True)),
-    "steady: smoothed hand only": _steady(_OFF),
-    "steady: no known rate": _steady(SteadyConfig(rotation_feedforward=False)),
+    "steady": _named("policy"),
+    **{without(stage): _without(stage) for stage in POLICY_STAGES},
     "estimated curvature": _wrapped("curvature"),
     "policy sub-steps x2": _wrapped("substeps"),
     "projection": _named("projection"),
-    "projection + steady": _steady(SteadyConfig(), inner="projection"),
+    "projection + steady": _steady_projection,
     # controller "policy" after a setup probe on a twin (`cap run --probe`): the measured arm
     # stiffness and grasp play (run_variant)
     PROBED: _named("policy"),
@@ -582,8 +555,8 @@ def paired_from_dict(data: dict[str, Any]) -> PairedDifference:
 
 def plot_paired_differences(pairs: Iterable[PairedDifference], path: str | Path) -> Path:
     """One row per cell: every pair's difference [N] (grey dots), the mean with its 95 %
-    interval (blue: below 0, red: above, purple: either), and zero, the line the issue's "at
-    or below" asks for. Returns the written path."""
+    interval (blue: below 0, red: above, purple: either), and zero (at or below the
+    baseline). Returns the written path."""
     pairs = list(pairs)
     fig = new_figure(figsize=(9.0, 0.42 * len(pairs) + 1.4))
     ax = fig.add_subplot(1, 1, 1)

@@ -1,6 +1,7 @@
-"""The hand's travel and the force across d: undoing its attenuation, measured (issue 9).
+"""The hand's travel and the force across d: undoing its attenuation, measured.
 
-    python benchmarks/travel_study.py [--seeds 20] [--noise-seeds 10] [--map-seeds 2] [--out FILE]
+    python -m benchmarks.studies.travel_study [--seeds 20] [--noise-seeds 10] [--map-seeds 2]
+        [--out FILE]
 
 Why. After each command the executor re-anchors the target across the new d at the measured
 pose (`command_from="measured"`), so the arm's stretch right after a command lies along d:
@@ -9,12 +10,13 @@ travels x along the path u before the next reading. The reading's force across d
 therefore k x sin(e) (e: the angle from d to u), whatever the lead, while the quasi-static
 model the policy was trained on reads k delta sin(e) for an unresisted step. At the first
 reading from rest the hand has travelled about a third of the step (the arm's lag and the
-object's start; the drawer's first located reading reads about half of the model, stop 26),
-so that reading understates the error. The executor knows x: the hand's own poses.
+object's start), so that reading understates the error. The executor knows x: the hand's own
+poses.
 
-Variants, each the `policy` controller with its reading or step force changed, against the
-unchanged `policy` and the classical controller (the forces study's conditions: hook hand,
-sensor noise 0.1 N, the dead band derived from it):
+Variants, each the `policy` controller with its start reading taken as read (`BASE`: the
+travel scaling off, and the carry removal when the controller has it) and then its reading or
+step force changed, against that base, the full `policy` and the classical controller (the
+forces study's conditions: hook hand, sensor noise 0.1 N, the dead band derived from it):
 - `step force from stretch`: step_force = k x |the commanded stretch in the workplane|;
 - `step force from travel`: step_force = k x max(x, delta / 10);
 - `across / travel`: the force across d multiplied by delta / clip(x, delta / 10, delta) on
@@ -24,24 +26,17 @@ sensor noise 0.1 N, the dead band derived from it):
 - `across / travel, weighted`: the same, its gain (delta / x - 1) times |F_across| / |F|;
 - `hold after the first move`: no scaling; instead the controller commands no move (step
   length 0, d kept) on the first reading after the first move from rest, so that the reading
-  it first corrects on is the settled one the policy was trained on (a zero-length step holds
-  the measured pose: the executor re-anchors the whole in-plane tracking error, so the arm
-  relaxes);
-- `across / travel, gated` (stop 29): `across / travel` only on readings whose force along d
-  the hand's travel explains, k x > -F.d (until then the object still holds the hand and the
-  force across d is its resistance seen at an angle);
-- `across / travel, gated, first reading` (stop 29): the same on the reading after the first
-  move only.
+  it first corrects on is the settled one the policy was trained on;
+- `across / travel, gated`: `across / travel` only on readings whose force along d the hand's
+  travel explains, k x > -F.d (until then the object still holds the hand and the force
+  across d is its resistance seen at an angle);
+- `across / travel, gated, first reading`: the same on the reading after the first move only.
 
-The variants wrap `policy` as stop 28 shipped it (`policy: stop 28`, SteadyConfig
-travel_scaling off). `policy` is the library's controller since stop 29: the gated scaling on
-the first reading with the arm's lag credited, delta / (x (1 + tau / dt))
-(SteadyConfig.travel_scaling).
-
-Cells: the 20-seed randomized suite and the paper's offsets over sensor-noise seeds (every
-task), and the resistance map (the policy section's cells, 2 seeds each). Writes every run
-and the per-cell summary to benchmarks/results/travel_study.json and prints the tables.
-docs/forces.md (stops 28 and 29) says what was adopted and why.
+The full `policy` has the last of these with the arm's lag credited, delta / (x (1 + tau /
+dt)) (`SteadyConfig.travel_scaling`). Cells: the 20-seed randomized suite and the paper's
+offsets over sensor-noise seeds (every task), and the resistance map (the policy section's
+cells, 2 seeds each). Writes the per-cell summary to `--out` and prints the tables
+(docs/design/default-controller.md has what was adopted and why).
 """
 
 from __future__ import annotations
@@ -68,27 +63,29 @@ from constraint_aware.bench.analysis import (
     resistance_map,
     suite_conditions,
 )
-from constraint_aware.bench.forces import STOP28
 from constraint_aware.control.controllers import (
-    MIN_TRAVEL_SHARE,
+    POLICY_STAGES,
     ControlInput,
     DirectionController,
-    PolicyController,
-    SteadyDirection,
-    _across,
     make_controller,
 )
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.simulate import RunSpec
+from constraint_aware.control.steady import MIN_TRAVEL_SHARE, across_force
 from constraint_aware.geometry import FloatArray
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.spatial import Pose
 
 RESULT = Path(__file__).parent / "results" / "travel_study.json"
 SENSOR_NOISE = 0.1  # [N] as the forces study
-# MIN_TRAVEL_SHARE (controllers): here the least travel the scalings divide by, as a share of
+# MIN_TRAVEL_SHARE (control.steady): here the least travel the scalings divide by, as a share of
 # the step (a hand that has hardly moved would otherwise give an unbounded factor)
-REFERENCES = ("policy: stop 28", "policy", "classical")
+#: the base every variant changes: `policy` with the start's reading as read
+BASE = "policy: start as read"
+BASE_OFF: dict[str, float] = {
+    s: 0.0 for s in ("travel_scaling", "carry_removal") if s in POLICY_STAGES
+}
+REFERENCES = (BASE, "policy", "classical")
 VARIANTS = (
     "step force from stretch",
     "step force from travel",
@@ -179,7 +176,7 @@ class TravelScaled:
             )  # fmt: skip
         if self.variant == "step force from travel":
             return dataclasses.replace(inp, step_force=self.k * max(travel, floor))
-        located = _across(inp)  # the steady controller's own split (known workplane)
+        located = across_force(inp)  # the steady controller's own split (known workplane)
         assert located is not None
         across, across_dir = located
         force = np.asarray(inp.force, dtype=float)
@@ -242,18 +239,16 @@ def one_run(cond: Condition, seed: int, variant: str) -> dict[str, Any]:
     assert cfg.workplane_normal is not None
     meter = TravelMeter(sim, np.asarray(cfg.workplane_normal, dtype=float))
     ctrl: DirectionController
-    # stop 28's `policy`: the start's reading as it is, under every variant
-    stop28 = SteadyDirection(
-        PolicyController(policy, mirror=True), prep.rotation_rate, STOP28, name="policy",
-    )  # fmt: skip
-    if variant == "policy: stop 28":
-        ctrl = stop28
+    # `policy` with the start's reading as read, under every variant
+    base = make_controller("policy", policy, prep.rotation_rate, prep.normal, BASE_OFF)
+    if variant == BASE:
+        ctrl = base
     elif variant in REFERENCES:
         ctrl = make_controller(variant, policy, prep.rotation_rate, prep.normal)
     elif variant == "hold after the first move":
-        ctrl = HoldFirst(stop28)
+        ctrl = HoldFirst(base)
     else:
-        ctrl = TravelScaled(stop28, meter, sim.translational_stiffness, cfg.step_length, variant)
+        ctrl = TravelScaled(base, meter, sim.translational_stiffness, cfg.step_length, variant)
     record = Executor(meter, ctrl, cfg, monitor=sim).run(prep.d0, {"task": cond.task})
     return {  # the condition's overrides follow from its axis and level (bench.analysis)
         "axis": cond.axis,
@@ -267,10 +262,6 @@ def one_run(cond: Condition, seed: int, variant: str) -> dict[str, Any]:
         "peak_force_N": record.peak_force,
         "mean_force_N": record.mean_force,
     }
-
-
-def _rounded(value: Any) -> Any:
-    return round(value, 4) if isinstance(value, float) else value
 
 
 def _star(args: tuple[Condition, int, str]) -> dict[str, Any]:
@@ -364,8 +355,6 @@ def main() -> None:
         "workers": args.workers,
         "summary": summary,
         "map_totals": totals,
-        # one list per field, run i at index i (peaks and means rounded to 0.1 mN)
-        "runs": {k: [_rounded(r[k]) for r in runs] for k in runs[0]} if runs else {},
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(data, indent=1, allow_nan=True) + "\n")

@@ -1,18 +1,20 @@
-"""Issue 9's force gaps: where the default policy's contact force comes from, and what steadies it.
+"""The force study: where the default policy's contact force comes from, and what steadies it.
 
-    nice -n 10 python benchmarks/forces.py [--seeds 20] [--map-seeds 2] [--out benchmarks/results]
+    nice -n 10 python -m benchmarks.studies.forces [--seeds 20] [--map-seeds 2]
+        [--out benchmarks/results]
 
-Runs (bench/forces.py): the policy's one-step turn against small forces; a per-run diagnosis
-of door and drawer (default, classical, steady; the paper's offset and suite seeds 0-4:
-transient vs steady force, the steady lag and zig-zag against the path's turn delta/r); the
-20-seed randomized suite and the paper's offsets for every variant, the paper's offsets over
-10 sensor-noise seeds for default, classical and steady; the resistance map for default,
-classical, steady, steady as stops 28 and 29 shipped it and steady without the known rate; where the
-start gap to the classical controller comes from (the cells where steady is above it: the
-ground-truth references, the settled hand, a stiffer grasp, a grasp without play, and door
-and drawer suite seeds held out from the classical controller's tuning, with run-by-run
-paired differences). Writes forces.json (typed results), forces.md (tables rendered from the
-JSON) and forces_gap.png (the run-by-run differences, drawn from the JSON). One process.
+Runs (benchmarks/studies/force_diagnosis.py): the policy's one-step turn against small forces;
+a per-run diagnosis of door and drawer (default, classical, steady; the paper's offset and
+suite seeds 0-4: transient vs steady force, the steady lag and zig-zag against the path's turn
+delta/r); the 20-seed randomized suite and the paper's offsets for every variant, the paper's
+offsets over 10 sensor-noise seeds for default, classical, steady and steady after a probe;
+the resistance map for default, classical and steady; where the start gap to the classical
+controller comes from (the cells where steady is above it: the ground-truth references, the
+settled hand, a stiffer grasp, a grasp without play, and door and drawer suite seeds held out
+from the classical controller's tuning, with run-by-run paired differences). Writes
+forces.json (typed results), forces.md (tables rendered from the JSON) and forces_gap.png
+(the run-by-run differences, drawn from the JSON). One process. The stage-by-stage ablation
+of the default controller is benchmarks/ablation.py's.
 """
 
 from __future__ import annotations
@@ -27,13 +29,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from constraint_aware.bench.analysis import (
-    Condition,
-    paper_offset_conditions,
-    resistance_map,
-    suite_conditions,
-)
-from constraint_aware.bench.forces import (
+from benchmarks.studies.force_diagnosis import (
     PROBED,
     REFERENCES,
     SETTLED_PERIOD,
@@ -52,38 +48,23 @@ from constraint_aware.bench.forces import (
     summary_from_dict,
     table_lines,
 )
+from constraint_aware.bench.analysis import (
+    Condition,
+    paper_offset_conditions,
+    resistance_map,
+    suite_conditions,
+)
 from constraint_aware.control.simulate import executor_config
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.hand import HandConfig
 from constraint_aware.sim.tasks import task_config
 
-DIAGNOSED = ("default", "classical", "steady", "steady: stop 17")
-MAP_VARIANTS = (
-    "default", "classical", "steady", "steady: stop 28", "steady: stop 29", "steady: no known rate",
-)  # fmt: skip
-MAIN_VARIANTS = (
-    "default",
-    "classical",
-    "steady",
-    "steady: stop 17",
-    "steady: feed-forward at once",
-    "steady: reversals before location",
-    "steady: stop 28",
-    "steady: stop 29",
-    PROBED,
-)
+DIAGNOSED = ("default", "classical", "steady")
+MAP_VARIANTS = ("default", "classical", "steady")
+MAIN_VARIANTS = ("default", "classical", "steady", PROBED)
 #: the gap study: the library's controller and the classical one, the references, and both
 #: controllers with the settled hand
-GAP_VARIANTS = (
-    "steady",
-    "classical",
-    "steady: reversals before location",
-    "steady: stop 28",
-    "steady: stop 29",
-    "steady: lag inversion",
-    PROBED,
-    *REFERENCES,
-)
+GAP_VARIANTS = ("steady", "classical", PROBED, *REFERENCES)
 GAP_SETTLED = ("steady", "classical")
 GAP_TASKS = ("door-opening", "drawer-opening")
 #: the run-by-run figure, beside forces.md
@@ -162,7 +143,7 @@ def render(data: dict[str, Any]) -> list[str]:
         return [summary_from_dict(c) for c in data[key]]
 
     lines = [
-        "# Issue 9 force study (benchmarks/forces.py)",
+        "# The force study (benchmarks/studies/forces.py)",
         "",
         f"Policy: {data['policy']}. Cells: successes/runs, median peak |F| [N], mean |F| [N].",
         "",
@@ -393,8 +374,6 @@ def main() -> None:
     paired = [
         *paired_differences(gap_runs, "steady", "classical"),
         *paired_differences(gap_runs, PROBED, "classical"),
-        *paired_differences(gap_runs, "steady", "steady: reversals before location"),
-        *paired_differences(gap_runs, "steady: lag inversion", "classical"),
         *paired_differences(gap_runs, "steady" + SETTLED_SUFFIX, "classical" + SETTLED_SUFFIX),
     ]
     data: dict[str, Any] = {
