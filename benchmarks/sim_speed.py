@@ -1,48 +1,145 @@
-"""Simulation speed per embodiment: 30-step episodes vs real time on one core. Writes JSON.
+"""Simulation speed per embodiment: MuJoCo's share of a run, real-time factors, env steps/s.
 
     python benchmarks/sim_speed.py [--repeats 5] [--robots hook-hand,jaco]
-        [--out benchmarks/results/sim_speed.json]
+        [--parts overhead,realtime,env] [--out benchmarks/results/sim_speed.json]
 
-Per embodiment and task: the median over `--repeats` of one whole 30-control-step episode with
-the policy, measured as CPU time of this process (one core: other processes on a shared
-machine do not count, so the figure holds on a loaded machine) and as wall time. Success and
-the force limit are pushed out of reach so every episode runs all 30 steps; the executor's two
-quasi-static guards (the start-of-run self-check and the arm-deflection stop) are off, so that
-the lagging arm is not stopped after a few steps (the subject is the simulator's speed). The
-real-time factors count the robot time of the episode:
-- `control`: the 30 control periods (3 s at 100 ms) over the episode's whole cost, grasp and
-  model building included (the issue's bar: >= 10x on one core);
-- `simulated`: all simulated time (the grasp's settling too) over the same cost.
-The medians of the embodiments' per-task factors and their ratio to the hook hand come from the
-same run. The 1-minute load average before and after is recorded (wall times depend on it).
+Three measurements per embodiment, each a median over `--repeats` in this one run (the
+machine may be shared: compare ratios from one run, never a lone absolute time; the 1-minute
+load average before and after is recorded):
+
+- `overhead`: the paper's conditions (bench/sweep.py `PAPER_OFFSETS`: the five tasks, the
+  drawer at both signs) with controller "policy" (the default policy, loaded once, as a
+  sweep's worker does), each a whole `control.simulate.run` (model build, grasp, episode); the
+  wall time of the run over the wall time spent inside MuJoCo's `mj_step` and `mj_forward`
+  during it (timed around each call). 1.0 would be MuJoCo's own
+  speed; the rest is Python: the simulated robot, the executor, the controller. Per task the
+  median over its conditions and repeats, per embodiment the median over the five tasks.
+- `realtime`: one 30-control-step episode per task from 10 deg off, success and the force
+  limit out of reach so that every episode runs all 30 steps, the executor's two quasi-static
+  guards (the start-of-run self-check and the arm-deflection stop) off so the lagging arm is
+  not stopped; the 30 control periods' robot time (3 s) over the episode's CPU time of this
+  process (one core; grasp and model build included, the policy loaded once): the control
+  real-time factor.
+- `env`: the Gymnasium task env (envs/task.py: `constraint_aware/<Task>-v0`), one episode per
+  task and repeat, the action keeping the current direction: env steps per second of wall
+  time, over `step` calls only and over whole episodes (`reset` included).
+- `build`: what a run spends before its grasp, per task, in CPU time of this process:
+  constructing the embodiment with the compiled-model cache emptied (the model compiled) and
+  with it filled (a sweep's runs of the same task configuration), and a new `MjData` on the
+  model.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import functools
 import math
 import os
 import statistics
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+import gymnasium as gym
+import mujoco
+
+import constraint_aware  # noqa: F401  (registers the Gymnasium envs)
+import constraint_aware.control.executor as executor_module
 import constraint_aware.control.guards as guards_module
+from constraint_aware.bench.provenance import write_results
+from constraint_aware.bench.sweep import PAPER_OFFSETS
 from constraint_aware.control.simulate import RunSpec, run
+from constraint_aware.envs import task_env_id
+from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
 from constraint_aware.sim.tasks import TASKS
 
 STEPS = 30
 DEFAULT_OUT = Path(__file__).parent / "results" / "sim_speed.json"
 QUASI_STATIC_GUARDS_OFF: dict[str, object] = {"self_check__steps": 0}  # and the arm-force one
+PARTS = ("overhead", "realtime", "env", "build")
 
 
-def episode(task: str, robot: str) -> dict[str, float]:
+class MujocoClock:
+    """Wall time [s] spent inside `mujoco.mj_step` and `mujoco.mj_forward` (`seconds`) and
+    inside `Executor.step` (`executor_seconds`), timed around each call while installed (every
+    module calls them as `mujoco.mj_step(...)`)."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self.executor_seconds = 0.0
+        self._step: Callable[..., None] = mujoco.mj_step
+        self._forward: Callable[..., None] = mujoco.mj_forward
+        self._executor_step = executor_module.Executor.step
+
+    def __enter__(self) -> MujocoClock:
+        step, forward, executor_step = self._step, self._forward, self._executor_step
+
+        def timed_step(m: mujoco.MjModel, d: mujoco.MjData, nstep: int = 1) -> None:
+            start = time.perf_counter()
+            step(m, d, nstep)
+            self.seconds += time.perf_counter() - start
+
+        def timed_forward(m: mujoco.MjModel, d: mujoco.MjData) -> None:
+            start = time.perf_counter()
+            forward(m, d)
+            self.seconds += time.perf_counter() - start
+
+        def timed_executor_step(executor: Any, *args: Any) -> Any:
+            start = time.perf_counter()
+            try:
+                return executor_step(executor, *args)
+            finally:
+                self.executor_seconds += time.perf_counter() - start
+
+        mujoco.mj_step, mujoco.mj_forward = timed_step, timed_forward
+        executor_module.Executor.step = timed_executor_step  # type: ignore[method-assign,assignment]
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        mujoco.mj_step, mujoco.mj_forward = self._step, self._forward
+        executor_module.Executor.step = self._executor_step  # type: ignore[method-assign]
+
+
+def overhead(robot: str, repeats: int) -> dict[str, Any]:
+    """Whole runs of the paper's conditions: wall time over MuJoCo's time (module docstring)."""
+    policy = ConstraintAwarePolicy.load()
+    per_task: dict[str, Any] = {}
+    for task, offsets in PAPER_OFFSETS.items():
+        ratios, own, walls = [], [], []
+        for offset in offsets:
+            spec = RunSpec(task=task, controller="policy", offset_deg=offset, robot=robot)
+            run(spec, policy=policy)  # warm: this process's caches (models, the arm's grasp)
+            for _ in range(repeats):
+                with MujocoClock() as clock:
+                    start = time.perf_counter()
+                    record, _ = run(spec, policy=policy)
+                    wall = time.perf_counter() - start
+                ratios.append(wall / clock.seconds)
+                own.append((wall - clock.executor_seconds) / clock.seconds)
+                walls.append(wall)
+        per_task[task] = {
+            "overhead_ratio_median": statistics.median(ratios),
+            "overhead_ratio_without_executor_step_median": statistics.median(own),
+            "run_wall_s_median": statistics.median(walls),
+            "outcome": record.outcome,
+        }
+    return {
+        "per_task": per_task,
+        **{
+            key: statistics.median(v[key] for v in per_task.values())
+            for key in ("overhead_ratio_median", "overhead_ratio_without_executor_step_median")
+        },
+    }
+
+
+def episode(task: str, robot: str, policy: ConstraintAwarePolicy) -> dict[str, float]:
     """One 30-step episode: its CPU and wall time [s] and its simulated time [s]."""
     overrides = (("max_steps", STEPS), ("success_progress", 1e9), ("force_limit", 1e9))
     spec = RunSpec(task=task, offset_deg=10.0, overrides=overrides, robot=robot)
     wall, cpu = time.perf_counter(), time.process_time()
-    record, sim = run(spec, executor_overrides=QUASI_STATIC_GUARDS_OFF)
+    record, sim = run(spec, policy=policy, executor_overrides=QUASI_STATIC_GUARDS_OFF)
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
     moves = len(record.steps) - 1  # the first record is the hold before the first move
     if moves < STEPS:
@@ -50,22 +147,27 @@ def episode(task: str, robot: str) -> dict[str, float]:
     return {"cpu_s": cpu, "wall_s": wall, "simulated_s": float(sim.data.time)}
 
 
-def measure(robot: str, repeats: int) -> dict[str, object]:
-    per_task: dict[str, dict[str, float]] = {}
-    for task in TASKS:
-        episode(task, robot)  # warm: model compile caches, IK and tracking-time caches
-        runs = [episode(task, robot) for _ in range(repeats)]
-        cpu = statistics.median(r["cpu_s"] for r in runs)
-        wall = statistics.median(r["wall_s"] for r in runs)
-        simulated = statistics.median(r["simulated_s"] for r in runs)
-        per_task[task] = {
-            "cpu_s_median": cpu,
-            "wall_s_median": wall,
-            "simulated_s": simulated,
-            "control_real_time_factor_cpu": STEPS * CONTROL_PERIOD / cpu,
-            "simulated_real_time_factor_cpu": simulated / cpu,
-            "control_real_time_factor_wall": STEPS * CONTROL_PERIOD / wall,
-        }
+def realtime(robot: str, repeats: int) -> dict[str, Any]:
+    """The control real-time factor on one core (module docstring)."""
+    policy = ConstraintAwarePolicy.load()
+    guard = guards_module.ARM_FORCE_DISAGREEMENT_STEPS
+    guards_module.ARM_FORCE_DISAGREEMENT_STEPS = math.inf
+    try:
+        per_task: dict[str, dict[str, float]] = {}
+        for task in TASKS:
+            episode(task, robot, policy)  # warm: model compile, IK and tracking-time caches
+            runs = [episode(task, robot, policy) for _ in range(repeats)]
+            cpu = statistics.median(r["cpu_s"] for r in runs)
+            simulated = statistics.median(r["simulated_s"] for r in runs)
+            per_task[task] = {
+                "cpu_s_median": cpu,
+                "wall_s_median": statistics.median(r["wall_s"] for r in runs),
+                "simulated_s": simulated,
+                "control_real_time_factor_cpu": STEPS * CONTROL_PERIOD / cpu,
+                "simulated_real_time_factor_cpu": simulated / cpu,
+            }
+    finally:
+        guards_module.ARM_FORCE_DISAGREEMENT_STEPS = guard
     factors = [v["control_real_time_factor_cpu"] for v in per_task.values()]
     return {
         "per_task": per_task,
@@ -75,40 +177,131 @@ def measure(robot: str, repeats: int) -> dict[str, object]:
     }
 
 
+def env_speed(robot: str, repeats: int) -> dict[str, Any]:
+    """Gymnasium task env steps per second (module docstring)."""
+    per_task: dict[str, dict[str, float]] = {}
+    for task in TASKS:
+        env = gym.make(task_env_id(task), robot=robot, offset_deg=15.0)
+        step_rates, episode_rates = [], []
+        for seed in range(repeats + 1):  # the first episode warms the caches
+            start = time.perf_counter()
+            obs, _ = env.reset(seed=seed)
+            stepping, steps, done = 0.0, 0, False
+            while not done:
+                t = time.perf_counter()
+                obs, _, terminated, truncated, _ = env.step(obs["direction"])
+                stepping += time.perf_counter() - t
+                steps += 1
+                done = terminated or truncated
+            if seed > 0:
+                step_rates.append(steps / stepping)
+                episode_rates.append(steps / (time.perf_counter() - start))
+        env.close()
+        per_task[task] = {
+            "steps_per_s_median": statistics.median(step_rates),
+            "steps_per_s_with_reset_median": statistics.median(episode_rates),
+        }
+    return {
+        "per_task": per_task,
+        "steps_per_s_median": statistics.median(v["steps_per_s_median"] for v in per_task.values()),
+    }
+
+
+def build(robot: str, repeats: int) -> dict[str, Any]:
+    """Embodiment construction with and without the model cache, and MjData (docstring)."""
+    from constraint_aware.sim import jaco, world
+    from constraint_aware.sim.embodiment import make_embodiment
+    from constraint_aware.sim.tasks import task_config
+
+    caches = [
+        cache
+        for cache in (getattr(world, "build_model", None), getattr(jaco, "_compiled", None))
+        if hasattr(cache, "cache_clear")
+    ]
+
+    def seconds(fn: Callable[[], object]) -> float:
+        """Median CPU time [s] of one call."""
+        times = []
+        for _ in range(max(repeats, 3)):
+            start = time.process_time()
+            fn()
+            times.append(time.process_time() - start)
+        return statistics.median(times)
+
+    def cold(task: str) -> object:
+        for cache in caches:
+            cache.cache_clear()  # type: ignore[union-attr]
+        return make_embodiment(robot, task_config(task))
+
+    def warm(task: str) -> object:
+        return make_embodiment(robot, task_config(task))
+
+    per_task = {}
+    for task in TASKS:
+        model = make_embodiment(robot, task_config(task)).model  # warm everything else
+        per_task[task] = {
+            "construct_cold_cpu_ms": 1e3 * seconds(functools.partial(cold, task)),
+            "construct_warm_cpu_ms": 1e3 * seconds(functools.partial(warm, task)),
+            "mjdata_cpu_ms": 1e3 * seconds(functools.partial(mujoco.MjData, model)),
+        }
+    return {
+        "per_task": per_task,
+        "model_cache": bool(caches),
+        **{
+            key + "_median": statistics.median(v[key] for v in per_task.values())
+            for key in ("construct_cold_cpu_ms", "construct_warm_cpu_ms", "mjdata_cpu_ms")
+        },
+    }
+
+
+MEASURES: dict[str, Callable[[str, int], dict[str, Any]]] = {
+    "overhead": overhead,
+    "realtime": realtime,
+    "env": env_speed,
+    "build": build,
+}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--robots", default="hook-hand,jaco")
+    parser.add_argument("--parts", default=",".join(PARTS))
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = parser.parse_args()
     if args.repeats < 1:
         parser.error("--repeats must be >= 1")
-    guards_module.ARM_FORCE_DISAGREEMENT_STEPS = math.inf
+    parts = args.parts.split(",")
+    if unknown := set(parts) - set(PARTS):
+        parser.error(f"--parts: unknown {sorted(unknown)}; valid: {', '.join(PARTS)}")
     robots = args.robots.split(",")
-    out: dict[str, object] = {
+    out: dict[str, Any] = {
         "load_average_1min_at_start": os.getloadavg()[0],
         "cpu_count": os.cpu_count(),
         "episode_steps": STEPS,
         "control_period_s": CONTROL_PERIOD,
         "controller": "policy",
         "repeats": args.repeats,
-        "measure": "median CPU time of this process (one core) per whole episode",
     }
     for robot in robots:
-        out[robot] = measure(robot, args.repeats)
-    if "hook-hand" in robots:
-        base = out["hook-hand"]
-        assert isinstance(base, dict)
-        for robot in robots:
-            entry = out[robot]
-            assert isinstance(entry, dict)
-            entry["episode_cpu_ratio_to_hook_hand"] = (
-                entry["episode_cpu_s_median"] / base["episode_cpu_s_median"]
-            )
+        out[robot] = {part: MEASURES[part](robot, args.repeats) for part in parts}
     out["load_average_1min_at_end"] = os.getloadavg()[0]
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(out, indent=1) + "\n")
-    print(json.dumps(out, indent=1))
+    write_results(args.out, out)
+    for robot in robots:
+        entry = out[robot]
+        print(
+            robot,
+            {
+                "overhead_ratio": entry.get("overhead", {}).get("overhead_ratio_median"),
+                "without_executor_step": entry.get("overhead", {}).get(
+                    "overhead_ratio_without_executor_step_median"
+                ),
+                "control_real_time_factor_cpu": entry.get("realtime", {}).get(
+                    "control_real_time_factor_cpu_median"
+                ),
+                "env_steps_per_s": entry.get("env", {}).get("steps_per_s_median"),
+            },
+        )
 
 
 if __name__ == "__main__":

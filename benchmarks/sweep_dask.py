@@ -1,32 +1,61 @@
-"""`cap bench --quick` on a local Dask cluster against the local pool: same results.json?
+"""`cap bench --quick` on a local Dask cluster of 1 and 2 workers (and the local pool): speedup.
 
-    python benchmarks/sweep_dask.py [--workers 1] [--out benchmarks/results/sweep_dask.json]
+    python benchmarks/sweep_dask.py [--workers 1,2] [--local]
+        [--out benchmarks/results/sweep_dask.json]
 
-Runs `run_bench(quick=True)` twice into temporary directories: once on the local process
-pool, once with `scheduler=` the address of a `distributed.LocalCluster` (worker processes,
-one thread each). Compares the two results.json files with the wall time removed (text of the
-canonical JSON, so NaN compares equal to NaN) and reports where they differ, and both wall
-times with their ratio (one run each, the same machine, one after the other).
+For each n in `--workers`: a `distributed.LocalCluster` of n single-threaded worker
+processes without a dashboard (as `cap bench --scheduler local --workers n` starts) and
+`run_bench(quick=True, scheduler=<its address>)`, one after the other, each bench in a fresh
+Python process (as a `cap bench` run is), into temporary directories; with `--local` the same
+on the local process pool (`workers=n`, no scheduler). Reports each bench's wall time (from
+results.json), the CPU time of this process and of each Dask worker during the bench, the
+speedup of every run over the first one measured two ways: by wall time (the same machine, one
+after the other: the load average is recorded, and on a loaded machine the share of the CPUs,
+not their number, sets it) and by the CPU critical path (this process's CPU time plus the
+busiest worker's: the wall time on otherwise idle cores, each worker on its own); and whether
+every results.json is the first one's except for the wall times and the worker count (text of
+the canonical JSON, so NaN compares equal to NaN; where not, the differing paths).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import resource
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-from distributed import LocalCluster
+from distributed import Client, LocalCluster
 
+from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.run import RESULTS, run_bench
+
+DEFAULT_OUT = Path(__file__).parent / "results" / "sweep_dask.json"
 
 
 def canonical_results(out_dir: Path) -> tuple[dict[str, Any], float]:
-    """results.json without its wall time, and that wall time [s]."""
+    """results.json without its wall times (the bench's and its sections'), worker count and
+    provenance (date and load average), and the bench's wall time [s]."""
     results = json.loads((out_dir / RESULTS).read_text())
     wall = float(results["meta"].pop("wall_time_s"))
+    results["meta"].pop("workers")
+    results.pop("provenance", None)
+
+    def drop_wall_times(node: Any) -> None:
+        if isinstance(node, dict):
+            node.pop("wall_time_s", None)
+            for value in node.values():
+                drop_wall_times(value)
+        elif isinstance(node, list):
+            for value in node:
+                drop_wall_times(value)
+
+    drop_wall_times(results)
     return results, wall
 
 
@@ -44,38 +73,87 @@ def differences(a: Any, b: Any, path: str = "") -> list[str]:
     return [] if same else [path]
 
 
+def one_bench(tmp: Path, workers: int, dask: bool) -> dict[str, Any]:
+    """One quick bench; its results (canonical), wall and CPU times [s], the load around it."""
+    name = f"{'dask' if dask else 'pool'}-{workers}"
+    entry: dict[str, Any] = {"name": name, "load_average_1min_before": os.getloadavg()[0]}
+    if dask:
+        with (
+            LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+            ) as cluster,
+            Client(cluster) as client,
+        ):
+            client.wait_for_workers(workers)
+            before = client.run(time.process_time)
+            cpu = time.process_time()
+            run_bench(tmp / name, quick=True, scheduler=cluster.scheduler_address)
+            entry["main_cpu_s"] = time.process_time() - cpu
+            after = client.run(time.process_time)
+        entry["worker_cpu_s"] = sorted(after[w] - before[w] for w in after)
+    else:
+        cpu = time.process_time()
+        children = resource.getrusage(resource.RUSAGE_CHILDREN)
+        run_bench(tmp / name, quick=True, workers=workers)
+        entry["main_cpu_s"] = time.process_time() - cpu
+        done = resource.getrusage(resource.RUSAGE_CHILDREN)
+        entry["workers_total_cpu_s"] = (
+            done.ru_utime + done.ru_stime - children.ru_utime - children.ru_stime
+        )
+    entry["results"], entry["bench_wall_time_s"] = canonical_results(tmp / name)
+    entry["load_average_1min_after"] = os.getloadavg()[0]
+    if dask:
+        entry["cpu_critical_path_s"] = entry["main_cpu_s"] + max(entry["worker_cpu_s"])
+    return entry
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--workers", type=int, default=1, help="local processes = Dask workers")
-    parser.add_argument("--out", default="benchmarks/results/sweep_dask.json")
+    parser.add_argument("--workers", default="1,2", help="worker counts, comma-separated")
+    parser.add_argument("--local", action="store_true", help="also the local process pool")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    parser.add_argument("--single", help=argparse.SUPPRESS)  # the subprocess: "dask-2", ...
     args = parser.parse_args()
+    if args.single is not None:
+        kind, n = args.single.split("-")
+        entry = one_bench(args.out.parent, int(n), dask=kind == "dask")
+        args.out.write_text(json.dumps(entry))
+        return
+    counts = [int(n) for n in args.workers.split(",")]
+    if min(counts) < 1:
+        parser.error("--workers: counts must be >= 1")
+    names = [f"dask-{n}" for n in counts] + ([f"pool-{n}" for n in counts] if args.local else [])
+    runs = []
     with tempfile.TemporaryDirectory() as tmp:
-        local_dir, dask_dir = Path(tmp) / "local", Path(tmp) / "dask"
-        run_bench(local_dir, quick=True, workers=args.workers)
-        start = time.perf_counter()
-        with LocalCluster(
-            n_workers=args.workers, threads_per_worker=1, processes=True, dashboard_address=":0"
-        ) as cluster:
-            cluster_start_s = time.perf_counter() - start
-            run_bench(dask_dir, quick=True, scheduler=cluster.scheduler_address)
-        local, local_wall = canonical_results(local_dir)
-        remote, dask_wall = canonical_results(dask_dir)
-    diff = differences(local, remote)
-    table = local["headline"]["table"]
+        for name in names:
+            out = Path(tmp) / f"{name}.json"
+            cmd = [sys.executable, __file__, "--single", name, "--out", str(out)]
+            subprocess.run(cmd, check=True)
+            runs.append(json.loads(out.read_text()))
+    first = runs[0]
+    table = first["results"]["headline"]["table"]
     result = {
         "quick": True,
-        "workers": args.workers,
-        "identical_results_json_except_wall_time": not diff,
-        "differences": diff,
+        "cpu_count": os.cpu_count(),
         "n_suite_runs": sum(c["n"] for row in table.values() for c in row.values()),
-        "local_wall_time_s": local_wall,
-        "dask_wall_time_s": dask_wall,
-        "dask_over_local_wall_time": dask_wall / local_wall,
-        "cluster_start_s": cluster_start_s,
+        "benches": [
+            {
+                **{k: v for k, v in r.items() if k != "results"},
+                "speedup_over_first": first["bench_wall_time_s"] / r["bench_wall_time_s"],
+                "cpu_critical_path_speedup_over_first": (
+                    first["cpu_critical_path_s"] / r["cpu_critical_path_s"]
+                    if "cpu_critical_path_s" in r
+                    else None
+                ),
+                "differences_from_first": differences(first["results"], r["results"]),
+            }
+            for r in runs
+        ],
     }
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(result, indent=2) + "\n")
+    result["identical_results_json_except_wall_time_and_workers"] = not any(
+        b["differences_from_first"] for b in result["benches"]
+    )
+    write_results(args.out, result)
     print(json.dumps(result, indent=2))
 
 

@@ -32,7 +32,13 @@ from constraint_aware.sim.jaco import (
     jaco_model_dir,
     rotvec,
 )
-from constraint_aware.sim.robot_adapter import SimulatedRobot, rotation_matrix
+from constraint_aware.sim.robot_adapter import (
+    FILTER_CONTACT,
+    FILTER_PREFIX,
+    FILTER_STEPS,
+    SimulatedRobot,
+    rotation_matrix,
+)
 from constraint_aware.sim.tasks import TASKS, task_config
 from constraint_aware.spatial import Pose, Wrench
 
@@ -233,8 +239,9 @@ def test_the_self_check_still_stops_a_wrong_convention_on_the_arms_plate(fault: 
     spec = RunSpec("plate-sliding", robot="jaco", controller="policy", offset_deg=-30.0, seed=1)
     record, _ = run(spec, wrap=lambda sim: FaultyRobot(sim, fault, hold))
     # stopped within the self-check's moves: by it, by the force limit, or (the rotated frame:
-    # its first reading, scaled by the start's travel scaling, turns d faster off the path) by
-    # the arm's deflection disagreeing with the sensor ("or the sensor reads low")
+    # its first reading, scaled by the start's travel scaling, turns d faster off the path)
+    # by the arm's deflection disagreeing with the sensor ("or the sensor reads low"), at
+    # step 3 and 11.3 N where the self-check would stop it at step 5 and 13.3 N
     assert record.outcome in ("sensor_convention", "force_limit", "not_following"), record.reason
     assert record.n_steps <= ExecutorConfig().self_check.steps
 
@@ -373,3 +380,142 @@ def test_the_arm_rests_stably_at_the_ends_of_the_stiffness_range(stiffness: int)
     assert np.linalg.norm(sim.read_pose().position - start) < 1e-3
     assert np.max(np.abs(sim.data.qvel)) < 0.05
     assert sim.grasp_contact()
+
+
+def _touching(sim: SimulatedRobot) -> bool:
+    """The filter's contact sensor now (the data after an `mj_step`)."""
+    sensor = sim.model.sensor(FILTER_PREFIX + FILTER_CONTACT)
+    return bool(sim.data.sensordata[sensor.adr[0]] > 0)
+
+
+@pytest.mark.parametrize("robot", ["hook-hand", "jaco"])
+def test_the_filter_is_the_mean_of_its_window_of_substeps(robot: str) -> None:
+    # the wrist sensor's filter, read from MuJoCo's sensor history, against the instantaneous
+    # wrench (`_sample_wrench`: the wrist sensors, turned and carried to the tool point by
+    # hand) and contact (`in_contact`: the hand's and the object's geoms) of every substep
+    sim = make_embodiment(robot, task_config("door-opening"))
+    sim.reset()
+    pose = sim.commanded_pose()
+    sim.command_pose(pose.moved(np.array([0.01, 0.004, -0.003])))
+    sim.advance()  # a loaded wrist
+    wrenches, contacts = [], []
+    for _ in range(FILTER_STEPS + 3):  # longer than the window: only its last substeps count
+        sim._step(1)
+        wrenches.append(sim._sample_wrench())
+        contacts.append(sim.in_contact())
+        assert _touching(sim) == contacts[-1]
+    sim._read_filter()
+    want = np.mean(wrenches[-FILTER_STEPS:], axis=0)
+    assert np.linalg.norm(want[:3]) > 1.0  # a loaded sensor, not a trivial comparison
+    true = sim.true_wrench()
+    np.testing.assert_allclose(true.force, want[:3], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(true.torque, want[3:], rtol=0, atol=1e-9)
+    assert sim.grasp_contact() == any(contacts[-FILTER_STEPS:])
+
+
+def test_the_filters_contact_sensor_is_the_monitors_contact() -> None:
+    # the finger pads pressing on the plate, then lifted off it: touching, then free
+    sim = make_embodiment("hook-hand", task_config("plate-sliding"))
+    sim.reset()
+    pose = sim.commanded_pose()
+    seen = []
+    for i in range(1, 9):
+        sim._apply_setpoint(pose.moved(-0.01 * i * pose.orientation.apply([0.0, 0.0, 1.0])))
+        for _ in range(round(sim.control_period / 0.002)):
+            sim._step(1)
+            seen.append((_touching(sim), sim.in_contact()))
+    assert all(sensor == monitor for sensor, monitor in seen)
+    assert {monitor for _, monitor in seen} == {True, False}
+
+
+def test_a_model_without_the_filters_sensors_is_refused() -> None:
+    from constraint_aware.errors import ConfigError
+    from constraint_aware.sim.world import ManipulationSim, build_spec
+
+    task = task_config("drawer-opening")
+    with pytest.raises(ConfigError, match="filter_force"):
+        ManipulationSim(task, model=build_spec(task).compile())
+
+
+@pytest.mark.parametrize("robot", ["hook-hand", "jaco"])
+def test_runs_of_one_task_share_its_model_and_not_their_data(robot: str) -> None:
+    spec = RunSpec("drawer-opening", "policy", 20.0, seed=4, randomize=True, robot=robot)
+    first, a = run(spec)
+    _, b = run(dataclasses.replace(spec, controller="classical"))
+    again, c = run(spec)
+    assert a.model is b.model is c.model
+    assert a.data is not c.data
+    assert first.to_dict() == again.to_dict()
+    assert a.model.opt.disableflags == 0  # measuring the Jaco's tracking left it as it was
+
+
+def _numpy_osc(sim: JacoSim) -> np.ndarray:
+    """The OSC law (sim/jaco.py's module docstring) written out in numpy and scipy: the
+    motor torques (6,) [N m] at the sim's state, for the compiled law to match."""
+    m, d, osc = sim.model, sim.data, sim.osc
+    jac = np.zeros((6, m.nv))
+    mujoco.mj_jacSite(m, d, jac[:3], jac[3:], sim._tcp_site)
+    full = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, full)
+    dofs = sim._dof_slice
+    comp = osc.motor_inertia_compensation * m.dof_armature[dofs]
+    full[sim._arm_dof, sim._arm_dof] -= comp
+    minv_arm = np.linalg.solve(full, jac.T).T[:, dofs]
+    j_arm, qvel, q = jac[:, dofs], d.qvel[dofs], d.qpos[sim._qpos_slice]
+    wrapped = (sim._posture - q + np.pi) % (2 * np.pi) - np.pi
+    tau0 = osc.posture_stiffness * wrapped - osc.posture_damping * qvel
+    tau0 -= osc.limit_stiffness * (np.minimum(q - sim._lo, 0.0) + np.maximum(q - sim._hi, 0.0))
+    lam = np.linalg.inv(j_arm @ minv_arm.T + np.eye(6) / osc.apparent_mass_cap)
+    tool = d.site_xmat[sim._tcp_site].reshape(3, 3)
+    err = np.concatenate([sim._sp_pos - d.site_xpos[sim._tcp_site],
+                          Rotation.from_matrix(sim._sp_mat @ tool.T).as_rotvec()])  # fmt: skip
+    k = np.repeat([osc.translational_stiffness, osc.rotational_stiffness], 3)
+    damping = 2.0 * osc.damping_ratio * np.sqrt(k * lam.diagonal())
+    wrench = k * err - damping * (j_arm @ qvel - osc.velocity_feedforward * sim._sp_vel)
+    tau = j_arm.T @ (wrench - lam @ (minv_arm @ tau0)) + tau0
+    bias = d.qfrc_bias[dofs]
+    limit = m.actuator_ctrlrange[sim._arm_act, 1]
+    friction = osc.friction_compensation * m.dof_frictionloss[dofs]
+    motor_room = np.maximum(limit - np.abs(bias), 1e-3)
+    room = np.maximum(motor_room - friction, 1e-3)
+    rotation = j_arm[3:].T @ wrench[3:]
+    if np.max(np.abs(tau) / room) > 1.0:
+        translation = tau - rotation
+        fit = np.max(np.abs(translation) / room)
+        if fit >= 1.0:
+            tau = translation / fit
+        else:
+            with np.errstate(divide="ignore"):
+                share = (room - np.sign(rotation) * translation) / np.abs(rotation)
+            tau = translation + min(1.0, np.min(share)) * rotation
+    moving = np.minimum(np.abs(qvel) / osc.friction_velocity_scale, 1.0)
+    sticking = np.tanh(tau / osc.friction_torque_scale)
+    tau = tau + friction * (moving * np.sign(qvel) + (1.0 - moving) * sticking)
+    tau = tau / max(1.0, np.max(np.abs(tau) / motor_room))
+    return np.clip(tau + bias + comp * d.qacc[dofs], -limit, limit)
+
+
+@pytest.mark.parametrize(
+    ("shift", "turn"),
+    [
+        ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),  # holding the grasp
+        ((0.01, -0.02, 0.005), (0.05, 0.0, -0.1)),  # tracking a step
+        ((0.3, -0.2, 0.1), (0.0, 0.0, 0.0)),  # far off: the motors' limits scale it down
+        ((0.02, 0.0, 0.0), (0.0, 2.0, 0.5)),  # a large turn: the rotation yields first
+        ((0.0, 0.0, 0.0), (0.0, 0.0, math.pi - 1e-4)),  # near pi: the turn's axis from q
+    ],
+)
+def test_the_compiled_osc_is_the_documented_law(
+    shift: tuple[float, ...], turn: tuple[float, ...]
+) -> None:
+    sim = JacoSim(task_config("drawer-opening"))
+    sim.reset()
+    pose = sim.commanded_pose()
+    sim._apply_setpoint(pose.moved(np.array(shift), Rotation.from_rotvec(turn)))
+    sim._sp_vel = np.array([0.05, -0.02, 0.01, 0.1, 0.0, -0.1])
+    for _ in range(3):  # the torques change the state: compare at several
+        want = _numpy_osc(sim)
+        sim._control()
+        got = sim.data.ctrl[sim._act_slice]
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+        mujoco.mj_step(sim.model, sim.data, nstep=2)

@@ -156,3 +156,27 @@ def test_run_bench_sends_its_sweeps_to_the_scheduler(
     bench_run.run_bench(tmp_path / "bench", quick=True, workers=1, scheduler=sweep.LOCAL_SCHEDULER)
     assert seen == {"executor": "ClientExecutor", "workers": 1, "runs": serial[:2]}
     assert sweep._CURRENT_EXECUTOR.get() is None  # the local pool again after the bench
+
+
+def _pid(_: object) -> int:
+    return os.getpid()
+
+
+def test_a_local_pool_keeps_its_workers_from_one_sweep_to_the_next() -> None:
+    with sweep.local_pool(2) as pool, use_executor(pool):
+        assert pool is not None
+        first = sweep.map_in_order(_pid, range(8), quiet=True)
+        second = sweep.map_in_order(_pid, range(8), quiet=True)
+        workers = set(pool._processes)  # type: ignore[attr-defined]
+    assert os.getpid() not in first
+    assert set(first) | set(second) <= workers and len(workers) == 2
+    with sweep.local_pool(1) as here, use_executor(here):  # one worker: this process
+        assert sweep.map_in_order(_pid, range(3), quiet=True) == [os.getpid()] * 3
+
+
+def test_map_in_order_keeps_the_jobs_order_on_any_executor() -> None:
+    executor = LastInFirstOut()
+    assert sweep.map_in_order(_square, list(range(6)), quiet=True, executor=executor) == [
+        x * x for x in range(6)
+    ]
+    assert executor.finished[0] == (5,)  # the last job finished first

@@ -133,3 +133,36 @@ def test_commanded_pose_round_trip() -> None:
     np.testing.assert_allclose(after.position, pose.position, atol=1e-9)
     assert (after.orientation.inv() * pose.orientation).magnitude() < 1e-9
     assert math.isfinite(sim.progress())
+
+
+@pytest.mark.parametrize(
+    ("yaw", "shift", "turn"),
+    [
+        (None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),  # holding
+        (None, (0.01, -0.004, 0.002), (0.02, -0.05, 0.3)),  # a step with a turn
+        (3.1, (0.0, 0.01, 0.0), (0.0, 0.0, 0.2)),  # the yaw goes past pi: no 2 pi spin
+    ],
+)
+def test_the_hook_hands_ramp_holds_the_interpolated_poses(
+    yaw: float | None, shift: tuple[float, ...], turn: tuple[float, ...]
+) -> None:
+    # `_ramp` computes a period's joint targets in one product; they must be the joint
+    # targets of the interpolated poses (start + f shift, exp(f turn) R0), piece by piece
+    from constraint_aware.sim.robot_adapter import RAMP_FRACTIONS, rotation_matrices
+
+    sim = ManipulationSim(task_config("door-opening"))
+    sim.reset()
+    if yaw is not None:
+        sim._target[3] = yaw
+    start, start_rotation = sim._setpoint()
+    f = RAMP_FRACTIONS[:, None]
+    positions = start + f * np.array(shift)
+    rotations = rotation_matrices(f * np.array(turn)) @ start_rotation
+    want = sim._unwrapped(sim._joint_targets(positions, rotations))
+    held: list[np.ndarray] = []
+    sim._step = lambda n: held.append(sim.data.ctrl[sim._arm_ctrl].copy())  # type: ignore[method-assign]
+    sim._ramp(start, np.array(shift), start_rotation, np.array(turn))
+    np.testing.assert_allclose(np.array(held), want, rtol=0, atol=1e-12)
+    assert np.all(np.abs(np.diff(np.array(held)[:, 3:], axis=0)) < 0.1)  # no spins
+    if yaw is not None:
+        assert held[-1][3] > math.pi  # unwrapped past pi, not wrapped to -pi

@@ -76,15 +76,17 @@ def check_number(
     unit: str = "",
 ) -> float:
     """`value` as a float, finite and inside [low, high] (open ends where asked)."""
-    left = "(-inf" if low is None else f"{'(' if low_open else '['}{low:g}"
-    right = "inf)" if high is None else f"{high:g}{')' if high_open else ']'}"
-    valid = f"a finite number in {left}, {right}" + (f" [{unit}]" if unit else "")
-    x = _as_float(value)
-    if x is None or not math.isfinite(x):
-        raise ConfigError(field, value, valid)
-    if low is not None and (x < low or (low_open and x == low)):
-        raise ConfigError(field, value, valid)
-    if high is not None and (x > high or (high_open and x == high)):
+    # a float is the common case (the executor checks inputs every control period)
+    x = value if type(value) is float else _as_float(value)
+    if (
+        x is None
+        or not math.isfinite(x)
+        or (low is not None and (x < low or (low_open and x == low)))
+        or (high is not None and (x > high or (high_open and x == high)))
+    ):
+        left = "(-inf" if low is None else f"{'(' if low_open else '['}{low:g}"
+        right = "inf)" if high is None else f"{high:g}{')' if high_open else ']'}"
+        valid = f"a finite number in {left}, {right}" + (f" [{unit}]" if unit else "")
         raise ConfigError(field, value, valid)
     return x
 

@@ -1,6 +1,12 @@
 """Vector math shared by the policy, the training env and the executor (numpy only).
 
 Everything here works on a single vector of shape (3,) or on a batch of shape (N, 3).
+
+The executor calls these once or more per control period on single vectors, where numpy's
+per-call overhead (np.cross, np.linalg.norm, np.all(np.isfinite(...))) exceeds the arithmetic
+many times over: single vectors take a path in Python floats with the same operations in the
+same order as numpy's, so both paths give the same floats (`angle_deg`, a reported quantity,
+uses math's atan2 and may differ from the batched path in the last place).
 """
 
 from __future__ import annotations
@@ -33,16 +39,48 @@ def as_vector(value: ArrayLike, name: str, *, batch: bool = False) -> FloatArray
             raise InvalidInputError(f"{name}: expected shape (N, 3), got {arr.shape}")
     elif arr.shape != (3,):
         raise InvalidInputError(f"{name}: expected shape (3,), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not all_finite(arr):
         raise InvalidInputError(f"{name}: contains NaN or inf")
     return arr
 
 
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a x b along the last axis: (3,) for two (3,) vectors, else broadcast as `np.cross`."""
+    a, b = np.asarray(a), np.asarray(b)
+    if a.shape == (3,) and b.shape == (3,):
+        a0, a1, a2 = a.tolist()
+        b0, b1, b2 = b.tolist()
+        return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+    return np.asarray(np.cross(a, b), dtype=np.float64)
+
+
+def norm(v: FloatArray) -> float:
+    """|v| of a (3,) vector (the same float as `np.linalg.norm(v)`); inf when it overflows."""
+    return math.sqrt(float(v.dot(v)))
+
+
+def all_finite(v: FloatArray) -> bool:
+    """Whether every element of `v` (any shape) is finite."""
+    if v.size <= 8:
+        return all(map(math.isfinite, v.ravel().tolist()))
+    return bool(np.all(np.isfinite(v)))
+
+
+def _row_norm(v: FloatArray) -> float:
+    """|v| of a (3,) vector summed as numpy's reduction along an axis sums it."""
+    x, y, z = v.tolist()
+    return math.sqrt(x * x + y * y + z * z)
+
+
 def unit(v: FloatArray, eps: float = 1e-12) -> FloatArray:
     """Normalize along the last axis; vectors with norm <= eps become zero vectors."""
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    safe = np.where(norm > eps, norm, 1.0)
-    return np.where(norm > eps, v / safe, 0.0)
+    v = np.asarray(v)
+    if v.shape == (3,):
+        n = _row_norm(v)
+        return v / n if n > eps else np.zeros(3)
+    norms = np.linalg.norm(v, axis=-1, keepdims=True)
+    safe = np.where(norms > eps, norms, 1.0)
+    return np.where(norms > eps, v / safe, 0.0)
 
 
 def in_plane(v: FloatArray, normal: FloatArray | None) -> FloatArray:
@@ -52,9 +90,15 @@ def in_plane(v: FloatArray, normal: FloatArray | None) -> FloatArray:
 
 def angle_deg(a: FloatArray, b: FloatArray) -> FloatArray | float:
     """Angle [deg] between vectors along the last axis (robust near 0 and 180 deg)."""
-    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    a, b = np.asarray(a), np.asarray(b)
+    if a.shape == (3,) and b.shape == (3,):
+        a0, a1, a2 = a.tolist()
+        b0, b1, b2 = b.tolist()
+        c = _row_norm(cross(a, b))
+        return math.degrees(math.atan2(c, a0 * b0 + a1 * b1 + a2 * b2))
+    cross_norm = np.linalg.norm(np.cross(a, b), axis=-1)
     dot = np.sum(a * b, axis=-1)
-    out = np.degrees(np.arctan2(cross, dot))
+    out = np.degrees(np.arctan2(cross_norm, dot))
     return float(out) if np.ndim(out) == 0 else out
 
 
@@ -63,21 +107,36 @@ def normalize_force(force: FloatArray, threshold: float) -> FloatArray:
 
     force: (3,) or (N, 3) [N]; threshold [N].
     """
-    norm = np.linalg.norm(force, axis=-1, keepdims=True)
-    keep = norm >= max(threshold, 1e-12)
-    return np.where(keep, force / np.where(keep, norm, 1.0), 0.0)
+    force = np.asarray(force)
+    if force.shape == (3,):
+        n = _row_norm(force)
+        return force / n if n >= max(threshold, 1e-12) else np.zeros(3)
+    norms = np.linalg.norm(force, axis=-1, keepdims=True)
+    keep = norms >= max(threshold, 1e-12)
+    return np.where(keep, force / np.where(keep, norms, 1.0), 0.0)
 
 
 def update_direction_rule(direction: FloatArray, action: FloatArray) -> FloatArray:
     """d_{t+1} = (d_t + a_t) / |d_t + a_t| (paper eq. 1), keeping d_t where |d_t + a_t| ~ 0."""
-    s = direction + action
-    norm = np.linalg.norm(s, axis=-1, keepdims=True)
-    ok = norm > DIRECTION_EPS
-    return np.where(ok, s / np.where(ok, norm, 1.0), direction)
+    s = np.asarray(direction + action)
+    if s.shape == (3,):
+        n = _row_norm(s)
+        return s / n if n > DIRECTION_EPS else np.array(direction, dtype=np.float64)
+    norms = np.linalg.norm(s, axis=-1, keepdims=True)
+    ok = norms > DIRECTION_EPS
+    return np.where(ok, s / np.where(ok, norms, 1.0), direction)
 
 
 def rotate_about(v: FloatArray, axis: FloatArray, angle_rad: FloatArray | float) -> FloatArray:
     """Rodrigues rotation of v about the unit `axis` by `angle_rad` (batched on the last axis)."""
+    v, axis = np.asarray(v, dtype=np.float64), np.asarray(axis, dtype=np.float64)
+    if v.shape == (3,) and axis.shape == (3,) and np.ndim(angle_rad) == 0:
+        # numpy's cos and sin (not math's): the same floats as the batched path
+        cos, sin = float(np.cos(angle_rad)), float(np.sin(angle_rad))
+        a0, a1, a2 = axis.tolist()
+        v0, v1, v2 = v.tolist()
+        along = a0 * v0 + a1 * v1 + a2 * v2
+        return v * cos + cross(axis, v) * sin + axis * along * (1.0 - cos)
     ang = np.asarray(angle_rad, dtype=np.float64)[..., None]
     c, s = np.cos(ang), np.sin(ang)
     kv = np.sum(axis * v, axis=-1, keepdims=True)
@@ -109,14 +168,14 @@ def random_perpendicular(rng: np.random.Generator, axis: FloatArray) -> FloatArr
 def turn_vector(a: FloatArray, b: FloatArray) -> FloatArray:
     """The rotation vector (3,) [rad] turning unit a onto unit b about a x b (zero if equal;
     for opposite vectors, any perpendicular axis)."""
-    axis = np.cross(a, b)
-    s = float(np.linalg.norm(axis))
+    axis = cross(a, b)
+    s = norm(axis)
     c = float(a @ b)
     if s < 1e-12:
         if c > 0:
             return np.zeros(3)
-        perp = np.cross(a, [1.0, 0.0, 0.0])
-        if np.linalg.norm(perp) < 1e-6:
-            perp = np.cross(a, [0.0, 1.0, 0.0])
+        perp = cross(a, np.array([1.0, 0.0, 0.0]))
+        if norm(perp) < 1e-6:
+            perp = cross(a, np.array([0.0, 1.0, 0.0]))
         return np.asarray(unit(perp) * math.pi)
     return np.asarray(axis / s * math.atan2(s, c))

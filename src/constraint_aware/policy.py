@@ -28,7 +28,15 @@ from constraint_aware.errors import (
     UnknownNameError,
     check_number,
 )
-from constraint_aware.geometry import FloatArray, as_vector, normalize_force, update_direction_rule
+from constraint_aware.geometry import (
+    FloatArray,
+    all_finite,
+    as_vector,
+    cross,
+    norm,
+    normalize_force,
+    update_direction_rule,
+)
 
 CARD_FORMAT = "constraint-aware-policy/1"
 _CURRENT = (
@@ -172,19 +180,19 @@ class DirectionUpdater:
             thr = check_number("threshold", threshold, low=0, unit="N")
         if step_force is not None:
             step_force = check_number("step_force", step_force, low=0, low_open=True, unit="N")
-        norm_d = float(np.linalg.norm(d))
+        norm_d = norm(d)
         if norm_d < 1e-9:
             raise InvalidInputError("direction: must be a non-zero vector")
         d = d / norm_d
         f_hat = normalize_force(f, thr)
-        force_norm = float(np.linalg.norm(f))
+        force_norm = norm(f)
         current = np.concatenate([f_hat, d])
         if p.observation == "history":
             obs = np.concatenate([current, self._previous])
             self._previous = current
         elif p.observation in MAGNITUDE_OBSERVATIONS:
             ratio = 0.0
-            if step_force is not None and np.any(f_hat):
+            if step_force is not None and f_hat.any():
                 ratio = min(force_norm / float(step_force), MAGNITUDE_CLIP)
             extra = (
                 [ratio] if p.observation == "magnitude" else [ratio, float(step_force is not None)]
@@ -192,7 +200,7 @@ class DirectionUpdater:
             obs = np.concatenate([current, extra])
         else:
             obs = current
-        if not np.any(f_hat):
+        if not f_hat.any():
             return d
         blocked = step_force is None or force_norm >= step_force
         # the network's action as it is (the paper's rule) without n, or for a blocked step
@@ -222,18 +230,17 @@ def mirror_average(
     observation of `direction` (3,) unit d; normal: (3,) not parallel to d (else the plain
     action is returned).
     """
-    m = np.cross(normal, direction)
-    norm = float(np.linalg.norm(m))
-    if norm < 1e-9:  # d along n: no in-plane side to mirror
+    m = cross(normal, direction)
+    size = norm(m)
+    if size < 1e-9:  # d along n: no in-plane side to mirror
         return policy.act_batch(obs[None, :])[0]
-    m = m / norm
-    mirror = np.eye(3) - 2.0 * np.outer(m, m)
-    mirrored = obs.copy()
-    layout = policy.observation_layout
-    for start, name in enumerate(layout):  # each 3-vector block: names *_x, *_y, *_z
-        if name.endswith("_x"):
-            mirrored[start : start + 3] = mirror @ obs[start : start + 3]
-    a, a_mirrored = policy.act_batch(np.stack([obs, mirrored]))
+    m = m / size
+    mirror = np.eye(3) - 2.0 * (m[:, None] * m)
+    pair = np.empty((2, obs.size))
+    pair[0] = pair[1] = obs
+    for start in policy.vector_blocks:
+        pair[1, start : start + 3] = mirror @ obs[start : start + 3]
+    a, a_mirrored = policy.act_batch(pair)
     return np.asarray(0.5 * (a + mirror @ a_mirrored))
 
 
@@ -261,6 +268,8 @@ class ConstraintAwarePolicy:
             )
         self.observation = observation
         self.observation_layout = layout
+        #: where each 3-vector of the observation starts (names *_x, *_y, *_z)
+        self.vector_blocks = tuple(i for i, name in enumerate(layout) if name.endswith("_x"))
         # Float64 copies: the float32 training weights are reproduced to ~1e-7 while the
         # matrix products avoid float32 round-off.
         self._weights = [np.ascontiguousarray(w.T, dtype=np.float64) for w, _ in layers]
@@ -393,7 +402,7 @@ class ConstraintAwarePolicy:
                 f"obs: expected shape (N, {width}) (observation {self.observation!r}: "
                 f"{', '.join(self.observation_layout)}), got {arr.shape}"
             )
-        if not np.all(np.isfinite(arr)):
+        if not np.isfinite(arr).all():
             rows = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
             raise InvalidInputError(
                 f"obs: NaN or inf in {rows.size} row(s), the first at row {int(rows[0])}"
@@ -408,7 +417,7 @@ class ConstraintAwarePolicy:
             h = h @ w + b
             if i < last:
                 h = np.tanh(h)
-        return np.clip(h, -1.0, 1.0)
+        return np.minimum(np.maximum(h, -1.0), 1.0)  # np.clip, without its overhead
 
     def act(self, force_unit: ArrayLike, direction: ArrayLike, *extra: float) -> FloatArray:
         """Action (3,) in [-1, 1] for a unit (or zero) force and a unit motion direction.
@@ -475,15 +484,21 @@ def _vector(value: ArrayLike, name: str) -> FloatArray:
     """`value` as (3,) finite real floats whose norm is finite; InvalidInputError naming `name`
     otherwise (a complex value would lose its imaginary part, an overflowing norm would turn
     the vector into an unrelated direction)."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (3,):
+        # the executor's own readings, every control period: only the values to check
+        if not all_finite(value):
+            raise InvalidInputError(f"{name}: contains NaN or inf")
+        return _finite_norm(value, name)
     if np.iscomplexobj(value):
         raise InvalidInputError(f"{name}: complex values; expected 3 real numbers")
     return _finite_norm(as_vector(value, name), name)
 
 
 def _finite_norm(vector: FloatArray, name: str) -> FloatArray:
-    with np.errstate(over="ignore"):
-        norm = float(np.linalg.norm(vector))
-    if not (np.all(np.isfinite(vector)) and math.isfinite(norm)):
+    # a non-finite element makes the norm non-finite too; Python floats overflow to inf
+    # without a warning
+    x, y, z = vector.tolist()
+    if not math.isfinite(math.sqrt(x * x + y * y + z * z)):
         raise InvalidInputError(
             f"{name}: its norm overflows ({vector.tolist()}); expected a physical value"
         )

@@ -18,7 +18,7 @@ from typing import Any, Protocol, TypeVar
 import numpy as np
 
 from constraint_aware import deadband
-from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
+from constraint_aware.bench.sweep import PAPER_OFFSETS, map_in_order, suite_specs
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.simulate import (
@@ -215,12 +215,20 @@ def run_all(
     policies = policies or {}
     labels = list(controllers) + [k for k in policies if k not in controllers]
     seeds = list(seeds)
-    return [
-        run_condition(c, ctrl, s, thr, sensor_noise, policies.get(ctrl), policy_controller)
+    jobs = [
+        (c, ctrl, s, thr, sensor_noise, policies.get(ctrl), policy_controller)
         for c in conditions
         for s in seeds
         for ctrl in labels
     ]
+    return map_in_order(_run_condition_job, jobs, label="policy section")
+
+
+def _run_condition_job(
+    args: tuple[Condition, str, int, float, float, ConstraintAwarePolicy | None, str],
+) -> RunResult:
+    """`run_condition` on one job of `run_all` (a sweep's worker calls it)."""
+    return run_condition(*args)
 
 
 def closed_loop_cases() -> list[Condition]:

@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
-from constraint_aware.control.simulate import RunSpec, run
+from constraint_aware.bench.sweep import PAPER_OFFSETS, run_many, suite_specs
+from constraint_aware.control.simulate import EXECUTOR_PREFIX, RunSpec
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.embodiment import EMBODIMENTS
@@ -122,12 +122,12 @@ def _run_all(
     executor_overrides: dict[str, object] | None = None,
     policy: ConstraintAwarePolicy | None = None,
 ) -> list[tuple[RunSpec, dict[str, Any]]]:
-    """One process, in order (the bench's other experiments own the process pool)."""
-    out = []
-    for spec in specs:
-        record, _ = run(spec, policy=policy, executor_overrides=executor_overrides)
-        out.append((spec, record.summary()))
-    return out
+    """Every spec (with `executor_overrides`) on the sweep's executor (bench/sweep.py), in
+    order: (spec, its record's summary)."""
+    extra = tuple((EXECUTOR_PREFIX + k, v) for k, v in (executor_overrides or {}).items())
+    runs = [dataclasses.replace(s, overrides=(*s.overrides, *extra)) for s in specs]
+    results = run_many(runs, label="embodiment", policy=policy)
+    return [(spec, r["summary"]) for spec, r in zip(specs, results, strict=True)]
 
 
 def _grouped(

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from constraint_aware.bench.sweep import map_in_order
 from constraint_aware.control.executor import ExecutorConfig, command_jump_bound
 from constraint_aware.control.record import OUTCOMES, RunRecord
 from constraint_aware.control.simulate import RunSpec, run
@@ -360,13 +361,23 @@ def fault_suite(
     lag: Callable[[ManipulationSim], float] | None = None,
 ) -> FaultSuite:
     """Every fault on every task (and offset, seed), with the default policy (`lag`: as in
-    `run_fault`)."""
+    `run_fault`, picklable), on the sweep's executor (bench/sweep.py)."""
     pol = policy or ConstraintAwarePolicy.load()
-    runs = [
-        run_fault(task, fault, off, seed, pol, lag)
+    jobs = [
+        (task, fault, off, seed, pol, lag)
         for task in tasks
         for fault in faults
         for off in offsets
         for seed in seeds
     ]
+    runs = map_in_order(_run_fault_job, jobs, label="faults")
     return FaultSuite(DANGER_FORCE_FACTOR, ONSET, runs)
+
+
+def _run_fault_job(
+    args: tuple[
+        str, str, float, int, ConstraintAwarePolicy, Callable[[ManipulationSim], float] | None
+    ],
+) -> FaultRun:
+    """`run_fault` on one job of `fault_suite` (a sweep's worker calls it)."""
+    return run_fault(*args)

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from constraint_aware.bench.sweep import map_in_order
 from constraint_aware.errors import CapError
 from constraint_aware.geometry import angle_deg
 from constraint_aware.lfo.execute import execute
@@ -135,6 +136,15 @@ def _errors(skill: SkillParameters, place: Placement) -> dict[str, Any]:
     return out
 
 
+def _one_run_job(
+    args: tuple[Placement, str, int, str, list[int], ConstraintAwarePolicy | None],
+) -> PlacementRun:
+    """`one_run` on one job of `run_placement`, its demonstration drawn from the job's seed
+    (a sweep's worker calls it)."""
+    place, kind, index, controller, demo_seed, policy = args
+    return one_run(place, kind, index, controller, np.random.default_rng(demo_seed), policy)
+
+
 def one_run(
     place: Placement,
     kind: str,
@@ -199,10 +209,11 @@ def run_placement(
     policy: ConstraintAwarePolicy | None = None,
 ) -> PlacementResult:
     """`per_kind` placements of each kind, each demonstrated once and executed by every
-    controller (the same demonstration for all). One process: the runs are short."""
+    controller (the same demonstration for all), on the sweep's executor (bench/sweep.py)."""
     policy = policy or ConstraintAwarePolicy.load()
     names = list(kinds) + ([NO_STAY] if lid_without_stay else [])
     result = PlacementResult(per_kind, NOISE, seed, list(controllers), names)
+    jobs = []
     for k, name in enumerate(names):
         kind = "lid" if name == NO_STAY else name
         for i in range(per_kind):
@@ -212,9 +223,8 @@ def run_placement(
                 obj = dataclasses.replace(place.task.object, counterbalance=0.0)
                 place = dataclasses.replace(place, task=dataclasses.replace(place.task, object=obj))
             demo_seed = [seed, k, i, 1]
-            for controller in controllers:
-                run = one_run(place, name, i, controller, np.random.default_rng(demo_seed), policy)
-                result.runs.append(run)
+            jobs += [(place, name, i, controller, demo_seed, policy) for controller in controllers]
+    result.runs.extend(map_in_order(_one_run_job, jobs, label="placement"))
     for name in names:
         for controller in controllers:
             result.summary.append(summarize(result.runs, name, controller))

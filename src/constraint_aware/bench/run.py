@@ -34,6 +34,7 @@ from constraint_aware.bench.sweep import (
     SUITE_OFFSET_RANGE,
     available_cpus,
     dask_executor,
+    local_pool,
     use_executor,
 )
 from constraint_aware.errors import CapError
@@ -312,8 +313,9 @@ def run_bench(
     skipped = preflight(cfg)
     for line in skipped.values():
         on_skip(line)
-    if scheduler is None:
-        return _run_bench(out, cfg, loaded, policy, skipped)
+    if scheduler is None:  # one pool for every section: its workers keep their caches
+        with local_pool(workers) as pool, use_executor(pool):
+            return _run_bench(out, cfg, loaded, policy, skipped)
     with (
         dask_executor(scheduler, local_workers=workers) as (executor, threads),
         use_executor(executor),

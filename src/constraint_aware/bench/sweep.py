@@ -4,15 +4,21 @@ The runs go to any `concurrent.futures.Executor`: by default a local process poo
 the CPUs this process may use; `dask_executor(address)` gives a Dask cluster's (a machine's
 worth of runs is not the limit). Results keep the order of the specs whatever order the runs
 finish in, so a sweep's numbers do not depend on where or how fast it ran.
+
+`map_in_order` runs any picklable function over any jobs the same way (the bench's sections
+with their own kinds of runs), and `local_pool` keeps one process pool for a whole bench: its
+workers keep what they built (compiled models, the Jaco's grasp postures and tracking time
+constants, the compiled controller, the default policy) from one sweep to the next.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from contextvars import ContextVar
 from typing import Any, TypeVar
 
@@ -61,9 +67,16 @@ def suite_specs(
     return specs
 
 
+@functools.cache
+def _default_policy() -> ConstraintAwarePolicy:
+    """The shipped default policy, loaded once per process: every run of a sweep uses it
+    (runs only read a policy: each controller keeps its own session)."""
+    return ConstraintAwarePolicy.load()
+
+
 def _run_one(args: tuple[RunSpec, bool, ConstraintAwarePolicy | None]) -> dict[str, Any]:
     spec, keep_steps, policy = args
-    record, _ = run(spec, policy=policy)
+    record, _ = run(spec, policy=policy or _default_policy())
     out: dict[str, Any] = {"spec": dataclasses.asdict(spec), "summary": record.summary()}
     if keep_steps:
         out["angles_deg"] = record.angles
@@ -133,7 +146,7 @@ def dask_executor(
                 n_workers=local_workers or available_cpus(),
                 threads_per_worker=1,  # one MuJoCo run per process, as in the local pool
                 processes=True,
-                dashboard_address=":0",  # any free port: never collide with a running one
+                dashboard_address=None,  # no dashboard: its server costs CPU and a port
             )
             stack.enter_context(cluster)
             address = cluster.scheduler_address
@@ -172,6 +185,72 @@ def gather_in_order(
     return [done[i] for i in range(len(jobs))]
 
 
+class InProcessExecutor(Executor):
+    """Runs each submitted call at once, in this process (one worker)."""
+
+    def submit(self, fn: Callable[..., R], /, *args: Any, **kwargs: Any) -> Future[R]:
+        future: Future[R] = Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except Exception as exc:  # an interrupt stops the sweep at once
+            future.set_exception(exc)
+        return future
+
+
+@contextlib.contextmanager
+def local_pool(workers: int | None = None) -> Iterator[Executor]:
+    """An executor for a block of sweeps, to pass to `use_executor`: a process pool of
+    `workers` processes (default: the available CPUs) whose workers live until the block
+    ends, or this process itself for one worker."""
+    n_workers = workers or available_cpus()
+    if n_workers <= 1:
+        yield InProcessExecutor()
+        return
+    with ProcessPoolExecutor(max_workers=n_workers) as pool:
+        yield pool
+
+
+def map_in_order(
+    fn: Callable[[T], R],
+    jobs: Sequence[T],
+    workers: int | None = None,
+    label: str = "runs",
+    quiet: bool = False,
+    executor: Executor | None = None,
+) -> list[R]:
+    """[fn(job) for job in jobs] (`fn` and the jobs picklable), in the jobs' order, with a
+    progress bar on stderr unless `quiet`.
+
+    On `executor` if given, else on the one set by `use_executor`, else in a local process
+    pool of `workers` processes (default: `default_workers`); one worker runs them in this
+    process."""
+    executor = executor or _CURRENT_EXECUTOR.get()
+    with Progress(
+        TextColumn(f"[bold]{label}[/]"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=Console(stderr=True),
+        disable=quiet,
+    ) as progress:
+        task = progress.add_task(label, total=len(jobs))
+
+        def advance() -> None:
+            progress.advance(task)
+
+        n_workers = workers or default_workers(len(jobs))
+        if isinstance(executor, InProcessExecutor) or (executor is None and n_workers <= 1):
+            results = []
+            for job in jobs:
+                results.append(fn(job))
+                advance()
+            return results
+        if executor is not None:
+            return gather_in_order(executor, fn, jobs, advance)
+        with ProcessPoolExecutor(max_workers=min(n_workers, len(jobs))) as pool:
+            return gather_in_order(pool, fn, jobs, advance)
+
+
 def run_many(
     specs: Sequence[RunSpec],
     workers: int | None = None,
@@ -187,32 +266,8 @@ def run_many(
     On `executor` if given, else on the one set by `use_executor`, else in a local process pool
     of `workers` processes (default: `default_workers`); one worker runs them in this process.
     """
-    executor = executor or _CURRENT_EXECUTOR.get()
     jobs = [(s, keep_steps, policy) for s in specs]
-    with Progress(
-        TextColumn(f"[bold]{label}[/]"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=Console(stderr=True),
-        disable=quiet,
-    ) as progress:
-        task = progress.add_task(label, total=len(jobs))
-
-        def advance() -> None:
-            progress.advance(task)
-
-        if executor is not None:
-            return gather_in_order(executor, _run_one, jobs, advance)
-        n_workers = workers or default_workers(len(jobs))
-        if n_workers <= 1:
-            results = []
-            for job in jobs:
-                results.append(_run_one(job))
-                advance()
-            return results
-        with ProcessPoolExecutor(max_workers=min(n_workers, len(jobs))) as pool:
-            return gather_in_order(pool, _run_one, jobs, advance)
+    return map_in_order(_run_one, jobs, workers, label, quiet, executor)
 
 
 def success_table(results: Sequence[dict[str, Any]]) -> dict[str, dict[str, dict[str, Any]]]:

@@ -42,7 +42,7 @@ import numpy as np
 
 from constraint_aware.control.executor_config import ExecutorConfig
 from constraint_aware.control.lag import LagModel
-from constraint_aware.geometry import FloatArray
+from constraint_aware.geometry import FloatArray, all_finite, norm
 from constraint_aware.spatial import Pose, Wrench
 
 #: [m] without a known stiffness, the lead of the target over the measured pose beyond which
@@ -97,12 +97,12 @@ class PoseGuard:
         """Whether `pose` can be trusted (it then becomes the reference), and why not."""
         position = np.asarray(pose.position, dtype=float)
         quat = pose.orientation.as_quat()
-        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(quat))):
+        if not (all_finite(position) and all_finite(quat)):
             return False, "non-finite pose"
         ref = self.trusted
         if ref is not None:
             allowed = self.since_trusted + self.margin
-            jump = float(np.linalg.norm(position - ref.position))
+            jump = norm(position - ref.position)
             if jump > allowed:
                 return False, (
                     f"pose jumped {jump * 100:.1f} cm > commanded {allowed * 100:.1f} cm "
@@ -165,7 +165,7 @@ def arm_force(
     steps = ARM_FORCE_LAG_STEPS if quasi_static else ARM_FORCE_MODEL_STEPS
     allowance = steps * stiffness * step_length
     deflection = lag.lagged_deflection(position, target)
-    return max(0.0, stiffness * float(np.linalg.norm(deflection)) - allowance)
+    return max(0.0, stiffness * norm(deflection) - allowance)
 
 
 def arm_force_stop(
@@ -247,7 +247,7 @@ class ForcePrediction:
     def note(self, force: FloatArray, length: float) -> None:
         """The `force` (3,) [N] read before a move of `length` [m] (0: a hold)."""
         if self.last_force is not None and self.last_length > HOLD_LENGTH:
-            self.rates.append(float(np.linalg.norm(force - self.last_force)) / self.last_length)
+            self.rates.append(norm(force - self.last_force) / self.last_length)
         self.last_force = force
         self.last_length = length
 
@@ -262,7 +262,7 @@ class ForcePrediction:
         k = max([*rates, *known], default=None)
         if k is None or k <= 0:
             return length, math.nan
-        now = max(float(np.linalg.norm(force)), estimate)
+        now = max(norm(force), estimate)
         predicted = now + k * length
         if predicted <= self.force_limit:
             return length, predicted
@@ -309,7 +309,7 @@ class ContactGuard:
 
 def direction_stop(raw: FloatArray) -> Stop | None:
     """A controller's direction that is not a finite non-zero (3,) vector."""
-    if raw.shape != (3,) or not np.all(np.isfinite(raw)) or np.linalg.norm(raw) < 1e-9:
+    if raw.shape != (3,) or not all_finite(raw) or norm(raw) < 1e-9:
         return Stop("bad_command", f"controller returned direction {raw!r}")
     return None
 
@@ -325,9 +325,9 @@ def command_stop(target: Pose, previous: Pose, bound: float) -> Stop | None:
     """A command that is not finite, or whose position jumps from the `previous` command by
     more than `bound` [m]: not sent."""
     quat = target.orientation.as_quat()
-    if not (np.all(np.isfinite(target.position)) and np.all(np.isfinite(quat))):
+    if not (all_finite(target.position) and all_finite(quat)):
         return Stop("bad_command", "non-finite command (not sent)")
-    jump = float(np.linalg.norm(target.position - previous.position))
+    jump = norm(target.position - previous.position)
     if jump > bound:
         return Stop(
             "bad_command", f"command jump {jump * 100:.1f} cm > {bound * 100:.1f} cm (not sent)"

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from constraint_aware.geometry import FloatArray
+from constraint_aware.geometry import FloatArray, norm
 
 
 @dataclass
@@ -78,7 +78,7 @@ class LagModel:
         nothing along the motion; a hand without velocity gets no credit."""
         out = self.deflection(position, target, lag_share=0.0)
         tau = self.tracking_time_constant
-        speed = float(np.linalg.norm(self.velocity))
+        speed = norm(self.velocity)
         if tau is None or speed < 1e-9:
             return out
         motion = self.velocity / speed

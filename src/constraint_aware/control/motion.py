@@ -22,7 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.guards import REANCHOR_LIMIT_STEPS
 from constraint_aware.errors import InvalidInputError
-from constraint_aware.geometry import FloatArray
+from constraint_aware.geometry import FloatArray, cross, norm
 from constraint_aware.spatial import Pose
 
 
@@ -34,7 +34,7 @@ def orient_normal(
     InvalidInputError when the direction points along the radius (no sense of rotation)."""
     n = np.asarray(normal, dtype=float)
     radial = np.asarray(position, dtype=float) - np.asarray(hinge_point, dtype=float)
-    sense = float(np.cross(radial, np.asarray(direction, dtype=float)) @ n)
+    sense = float(cross(radial, np.asarray(direction, dtype=float)) @ n)
     if abs(sense) < 1e-9:
         raise InvalidInputError(
             "initial_direction: parallel to the radius from hinge_point; cannot orient the "
@@ -46,8 +46,8 @@ def orient_normal(
 def paper_rotation(d: FloatArray, d_next: FloatArray) -> Rotation:
     """The rotation about d_t x d_{t+1} (3,) by the angle between them (paper 3.4.1); the
     identity for parallel directions."""
-    axis = np.cross(d, d_next)
-    s = float(np.linalg.norm(axis))
+    axis = cross(d, d_next)
+    s = norm(axis)
     if s < 1e-12:
         return Rotation.identity()
     angle = math.atan2(s, float(d @ d_next))
@@ -70,12 +70,12 @@ def next_target(
     err = measured - target.position
     if normal is not None:
         err = err - float(err @ normal) * normal
-    n_move = float(np.linalg.norm(move))
+    n_move = norm(move)
     if n_move > 1e-12:
         d = move / n_move
         err = err - float(err @ d) * d
     limit = REANCHOR_LIMIT_STEPS * step_length
-    size = float(np.linalg.norm(err))
+    size = norm(err)
     if size > limit:
         err = err * (limit / size)
     return Pose(target.position + err + move, target.orientation)

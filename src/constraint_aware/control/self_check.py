@@ -35,7 +35,7 @@ import numpy as np
 
 from constraint_aware.control.guards import HOLD_LENGTH
 from constraint_aware.control.lag import LagModel
-from constraint_aware.geometry import FloatArray, in_plane
+from constraint_aware.geometry import FloatArray, in_plane, norm
 
 #: [N] only moves whose in-plane |F| is above the dead band and this are judged.
 MIN_FORCE = 2.0
@@ -156,20 +156,20 @@ class SensorSelfCheck:
         # a hand stopping or starting again: compared with the deflection only
         settled = self.moves_since_hold >= SETTLE_MOVES
         force = in_plane(force, self.normal)
-        magnitude = float(np.linalg.norm(force))
+        magnitude = norm(force)
         if magnitude < max(threshold, MIN_FORCE):
             return ""
         if settled:
             self.along.append(float(force @ direction) / magnitude)
         deflection = in_plane(self.lag.deflection(position, target), self.normal)
-        size = float(np.linalg.norm(deflection))
+        size = norm(deflection)
         if size > min_check_deflection(self.stiffness):
             self.cosines.append(float(force @ deflection) / (magnitude * size))
             if settled:
                 half = in_plane(
                     self.lag.deflection(position, target, CONFIRM_LAG_SHARE), self.normal
                 )
-                half_size = max(float(np.linalg.norm(half)), 1e-12)
+                half_size = max(norm(half), 1e-12)
                 self.confirm.append(float(force @ half) / (magnitude * half_size))
         # With a share of the lag credited F agrees with the deflection: the full credit is
         # what disagrees (it over-states the lag against a steady resistance), not the

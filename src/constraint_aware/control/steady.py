@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.interface import ControlInput, DirectionController
 from constraint_aware.errors import check_number
-from constraint_aware.geometry import FloatArray, turn_vector, unit
+from constraint_aware.geometry import FloatArray, all_finite, cross, norm, turn_vector, unit
 
 #: Overshoot damping, Rprop's step factors (Riedmiller & Braun, ICNN 1993, eta- and eta+).
 OVERSHOOT_FACTOR = 0.5
@@ -63,7 +63,9 @@ def across_force(inp: ControlInput) -> tuple[float, FloatArray] | None:
     is above the dead band."""
     if inp.workplane_normal is None:
         return None
-    m = unit(np.cross(inp.workplane_normal, inp.direction))
+    m = unit(
+        cross(np.asarray(inp.workplane_normal, dtype=float), np.asarray(inp.direction, dtype=float))
+    )
     return float(np.asarray(inp.force, dtype=float) @ m), m
 
 
@@ -136,7 +138,7 @@ def overshoot_gain(gain: float, reversed_: bool) -> float:
 
 
 def _finite(v: FloatArray) -> bool:
-    return v.shape == (3,) and bool(np.all(np.isfinite(v)))
+    return v.shape == (3,) and all_finite(v)
 
 
 class SteadyDirection:
@@ -190,13 +192,13 @@ class SteadyDirection:
         self._play_used = False
         self._play_turn: FloatArray | None = None  # [rad] the play's applied extra turn
         self._smoothed = np.zeros(3)  # [rad] exponential average of the applied turns
-        self._rotation: Rotation | None = None
+        self._rotation: FloatArray | None = None  # [rad] rotation vector of this step's turn
 
     def step_length(self, nominal: float) -> float:
         return self.inner.step_length(nominal)
 
     def hand_rotation(self) -> Rotation | None:
-        return self._rotation
+        return None if self._rotation is None else Rotation.from_rotvec(self._rotation)
 
     def next_direction(self, inp: ControlInput) -> FloatArray:
         self._readings += 1
@@ -236,7 +238,7 @@ class SteadyDirection:
         turn): a twist adds a force the model does not describe."""
         if inp.fixed_orientation:
             return False
-        return self._rotation is None or self._rotation.magnitude() < 1e-12
+        return self._rotation is None or norm(self._rotation) < 1e-12
 
     def _asked(
         self, reading: ControlInput, across: tuple[float, FloatArray] | None, locates: bool
@@ -265,7 +267,7 @@ class SteadyDirection:
         the play's extra turn takes it back at once and is not counted as an overshoot (one
         reading cannot tell the constraint's push from a resisting object's seen at an angle)."""
         pending, self._play_turn = self._play_turn, None
-        moves = float(np.linalg.norm(turn)) > 1e-9
+        moves = norm(turn) > 1e-9
         take_back = pending is not None and moves and float(turn @ pending) < 0
         gain = 1.0
         if self.config.overshoot_damping:
@@ -305,7 +307,7 @@ class SteadyDirection:
         if inp.fixed_orientation:
             self._rotation = None
         else:
-            self._rotation = Rotation.from_rotvec(self._smoothed if per_step is None else per_step)
+            self._rotation = self._smoothed if per_step is None else per_step
 
     def stage_inputs(self, constraint_type: str) -> dict[str, tuple[str, ...]]:
         """For each stage acting on this constraint type ("prismatic" or "revolute"), the run

@@ -534,11 +534,11 @@ def build_world(
     spec = parse_robot(robot)
     if spec.name == "hook-hand":
         from constraint_aware.lfo.robots import HookHandRobot
-        from constraint_aware.sim.world import ManipulationSim, build_spec
+        from constraint_aware.sim.world import ManipulationSim, build_filtered_spec
 
         if spec.stiffness is not None:
             task = task.with_overrides(hand__translational_stiffness=spec.stiffness)
-        world = build_spec(task)
+        world = build_filtered_spec(task)
         add_camera(world, station.camera)
         hook = ManipulationSim(
             task, model=world.compile(), control_period=spec.period or CONTROL_PERIOD

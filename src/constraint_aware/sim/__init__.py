@@ -13,7 +13,7 @@ from constraint_aware.lazy import lazy_getattr
 _EXPORTS = {
     "DEFAULT_ROBOT": "embodiment",
     "EMBODIMENTS": "embodiment",
-    "Embodiment": "embodiment",
+    "Embodiment": "base",
     "RobotSpec": "embodiment",
     "make_embodiment": "embodiment",
     "parse_robot": "embodiment",

@@ -18,9 +18,21 @@ import numpy as np
 
 from constraint_aware.errors import InvalidInputError, UnknownNameError
 from constraint_aware.geometry import FloatArray
-from constraint_aware.sim.monitor import GroundTruthMonitor
-from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, SimulatedRobot, period_substeps
+from constraint_aware.sim.base import Embodiment
+from constraint_aware.sim.jaco import JacoSim, OscConfig
+from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, period_substeps
 from constraint_aware.sim.tasks import TaskConfig
+from constraint_aware.sim.world import ManipulationSim
+
+__all__ = [
+    "DEFAULT_ROBOT",
+    "EMBODIMENTS",
+    "ROBOT_PARAMS",
+    "Embodiment",
+    "RobotSpec",
+    "make_embodiment",
+    "parse_robot",
+]
 
 DEFAULT_ROBOT = "hook-hand"
 #: The variant keys: key -> unit.
@@ -49,18 +61,6 @@ def variant_ranges(name: str | None = None) -> str:
     return "; ".join(parts)
 
 
-class Embodiment(GroundTruthMonitor, SimulatedRobot):
-    """What every embodiment is: the Robot adapter and the ground-truth monitor on one model."""
-
-    def reset(self) -> None:
-        """Grasp the handle and settle (sim/grasp.py): F_d may be read after."""
-        from constraint_aware.sim.grasp import grasp
-
-        grasp(self)
-        # the tracking time constant at the grasp configuration, fixed for the episode
-        self._tracking_time_constant = self._free_space_time_constant()
-
-
 @dataclass(frozen=True)
 class RobotSpec:
     """A parsed robot spec: the embodiment and its variant parameters (None: its default)."""
@@ -71,16 +71,12 @@ class RobotSpec:
 
 
 def _hook_hand(task: TaskConfig, spec: RobotSpec) -> Embodiment:
-    from constraint_aware.sim.world import ManipulationSim
-
     if spec.stiffness is not None:
         task = task.with_overrides(hand__translational_stiffness=spec.stiffness)
     return ManipulationSim(task, control_period=spec.period or CONTROL_PERIOD)
 
 
 def _jaco(task: TaskConfig, spec: RobotSpec) -> Embodiment:
-    from constraint_aware.sim.jaco import JacoSim, OscConfig
-
     osc = OscConfig()
     if spec.stiffness is not None:
         # translational only, as the hook hand's `hand__translational_stiffness`: the wrist's

@@ -31,13 +31,17 @@ motors' limits the rotational part of the task torque yields first, then the tas
 scaled down as a whole (clipping joint by joint turns the force). The wrist sensor reads the
 wrench between flange and hand, so the arm's remaining friction and reflected inertia show as
 tracking error and lag, not as force: the tool settles with `tracking_time_constant` (measured
-once per grasp posture, ~0.3 s at the default 1000 N/m).
+once per grasp posture, ~0.3 s at the default 1000 N/m). The law runs compiled (sim/osc.py,
+with numba from the `arm` extra).
 """
 
 from __future__ import annotations
 
+import copy
+import functools
 import importlib.util
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -48,10 +52,18 @@ from scipy.spatial.transform import Rotation
 
 from constraint_aware.errors import CapError, InvalidInputError
 from constraint_aware.geometry import FloatArray
-from constraint_aware.sim.embodiment import Embodiment
+from constraint_aware.sim.base import Embodiment
 from constraint_aware.sim.hand import HandConfig
-from constraint_aware.sim.objects import object_frame
-from constraint_aware.sim.robot_adapter import CONTROL_PERIOD, TIMESTEP, rotation_from_matrix
+from constraint_aware.sim.objects import OBJECT_BODY, object_frame
+from constraint_aware.sim.robot_adapter import (
+    CONTROL_PERIOD,
+    FILTER_STEPS,
+    TCP_COLUMNS,
+    TIMESTEP,
+    add_wrench_filter,
+    consecutive,
+    rotvec,
+)
 from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose
@@ -77,28 +89,6 @@ _IK_CACHE: dict[tuple[float, ...], FloatArray] = {}  # grasp configurations, see
 _TAU_CACHE: dict[tuple[float, ...], float] = {}  # tracking time constants, see below
 TRACKING_STEP = 0.01  # [m] the free-space step measured for the tracking time constant
 TRACKING_WINDOW = 3.0  # [s] the longest measured response (a slower axis reports this)
-
-
-def _consecutive(index: FloatArray, what: str) -> slice:
-    """A slice for consecutive indices (views instead of copies in the control loop)."""
-    first = int(index[0])
-    if not np.array_equal(index, np.arange(first, first + len(index))):
-        raise CapError(f"the Jaco's {what} are not consecutive: {index}")
-    return slice(first, first + len(index))
-
-
-def rotvec(rot: FloatArray) -> FloatArray:
-    """(3,) rotation vector [rad] of a (3, 3) rotation matrix (scipy's is ~50x slower here)."""
-    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot.tolist()
-    x, y, z = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)
-    s = math.sqrt(x * x + y * y + z * z)
-    angle = math.atan2(s, 0.5 * (r00 + r11 + r22 - 1.0))
-    if s < 1e-9:
-        return np.array([x, y, z])  # angle ~ 0: the rotation vector is v itself
-    if angle > math.pi - 1e-3:
-        return np.asarray(Rotation.from_matrix(rot).as_rotvec())  # near pi: v loses the axis
-    f = angle / s
-    return np.array([x * f, y * f, z * f])
 
 
 def _spd_solve(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -344,14 +334,11 @@ class JacoSim(Embodiment):
             g for g in range(m.ngeom) if self._is_in_subtree(int(m.geom_bodyid[g]), hand_body)
         }
         self._bind_monitor(hand_geoms, OBJECT_PREFIX)
-        self._setpoint: Pose | None = Pose(np.zeros(3), Rotation.identity())
         self._sp_pos = np.zeros(3)
         self._sp_mat = np.eye(3)
         self._sp_vel = np.zeros(6)  # [m/s, rad/s] the setpoint's velocity (interpolator)
-        self._posture = np.zeros(6)
-        self._jacp = np.zeros((3, m.nv))
-        self._jacr = np.zeros((3, m.nv))
         self._jac = np.zeros((6, m.nv))
+        self._jacp, self._jacr = self._jac[:3], self._jac[3:]  # views: mj_jacSite fills _jac
         self._minv_jt = np.zeros((6, m.nv))
         osc = self.osc
         self._k = np.repeat([osc.translational_stiffness, osc.rotational_stiffness], 3)
@@ -359,22 +346,58 @@ class JacoSim(Embodiment):
         # joint-limit repulsion band (unlimited joints: an empty band at +-inf)
         self._lo = np.where(self._limited, self._range[:, 0] + osc.limit_margin, -np.inf)
         self._hi = np.where(self._limited, self._range[:, 1] - osc.limit_margin, np.inf)
-        self._limit_gain = osc.limit_stiffness
-        self._act_slice = _consecutive(self._arm_act, "arm motors")
-        self._dof_slice = _consecutive(self._arm_dof, "arm dofs")
-        self._qpos_slice = _consecutive(self._arm_qpos, "arm joint positions")
-        self._err = np.zeros(6)
+        self._act_slice = consecutive(self._arm_act, "the Jaco's arm motors")
+        self._dof_slice = consecutive(self._arm_dof, "the Jaco's arm dofs")
+        self._qpos_slice = consecutive(self._arm_qpos, "the Jaco's arm joint positions")
         fric = self.osc.friction_compensation * m.dof_frictionloss[self._dof_slice]
         self._friction = fric if np.any(fric) else None
         # Lambda = (J M^-1 J^T + I / cap)^-1: its eigenvalues stay below the cap (OscConfig)
         self._eps = np.eye(6) / self.osc.apparent_mass_cap
         comp = self.osc.motor_inertia_compensation * m.dof_armature[self._dof_slice]
         self._rotor_comp = comp if np.any(comp) else None  # [kg m^2] c B per arm joint
-        self._arm_diag = (self._arm_dof, self._arm_dof)  # the arm joints' diagonal of M
         self._full_m = np.zeros((m.nv, m.nv))
-        self._rhs = np.hstack([np.eye(6), np.zeros((6, 1))])  # see _control
+        self._full_flat = self._full_m.reshape(-1)  # a view
+        self._arm_diag_flat = self._arm_dof * (m.nv + 1)  # the arm joints' diagonal of M
         self._control_every = self.osc.control_substeps
         self._phase = 0  # substeps since the last torque update
+        self._osc_torques, self._osc_index, self._osc_gains, self._osc_joint = self._osc_law()
+        self._posture = self._osc_joint[0]  # a view: the law's posture row (`_set_posture`)
+
+    def _osc_law(self) -> tuple[Callable[..., None], np.ndarray, FloatArray, FloatArray]:
+        """The compiled OSC law (sim/osc.py) and its fixed arguments: indices, gains, the
+        per-joint parameters."""
+        try:
+            import constraint_aware.sim.osc as law
+        except ImportError as exc:  # numba, in the `arm` extra
+            raise CapError(
+                f"the Jaco embodiment needs {exc.name}: pip install 'constraint-aware[arm]'"
+            ) from exc
+        cfg = self.osc
+        index = np.zeros(4, dtype=np.int64)
+        index[[law.DOF0, law.QPOS0, law.ACT0, law.TOOL_SITE]] = (
+            self._dof_slice.start, self._qpos_slice.start, self._act_slice.start, self._tcp_site,
+        )  # fmt: skip
+        gains = np.zeros(law.N_GAINS)
+        gains[law.POSTURE_STIFFNESS] = cfg.posture_stiffness
+        gains[law.POSTURE_DAMPING] = cfg.posture_damping
+        gains[law.LIMIT_STIFFNESS] = cfg.limit_stiffness
+        gains[law.VELOCITY_FEEDFORWARD] = cfg.velocity_feedforward
+        gains[law.FRICTION_VELOCITY_SCALE] = cfg.friction_velocity_scale
+        gains[law.FRICTION_TORQUE_SCALE] = cfg.friction_torque_scale
+        gains[law.INVERSE_MASS_CAP] = 1.0 / cfg.apparent_mass_cap
+        joint = np.zeros((8, 6))
+        joint[law.LOW], joint[law.HIGH] = self._lo, self._hi
+        joint[law.STIFFNESS], joint[law.DAMPING_GAIN] = self._k, self._damp_gain
+        joint[law.TORQUE_LIMIT] = self._torque_limit
+        if self._friction is not None:
+            joint[law.FRICTION] = self._friction
+        if self._rotor_comp is not None:
+            joint[law.ROTOR] = self._rotor_comp
+        return law.osc_torques, index, gains, joint
+
+    def _set_posture(self, q: FloatArray) -> None:
+        """(6,) [rad] the null-space posture spring's target (the grasp configuration)."""
+        self._posture[:] = q
 
     def _is_in_subtree(self, body: int, root: int) -> bool:
         while body > 0:
@@ -385,86 +408,36 @@ class JacoSim(Embodiment):
 
     # --- the operational-space impedance controller ----------------------------------------
     def _control(self) -> None:
-        """Motor torques for this substep from the OSC law (module docstring)."""
+        """Motor torques for this substep from the OSC law (module docstring; compiled:
+        sim/osc.py)."""
         m, d = self.model, self.data
-        jac, minv_jt, dofs = self._jac, self._minv_jt, self._dof_slice
-        mujoco.mj_jacSite(m, d, jac[:3], jac[3:], self._tcp_site)
-        self._solve_inertia(d, jac, minv_jt)
-        j_arm, minv_arm = jac[:, dofs], minv_jt[:, dofs]
-        qvel = d.qvel[dofs]
-        # null space: posture spring and joint-limit repulsion, projected so that they do not
-        # disturb the tool point (dynamically consistent: N^T = I - J^T Lambda J M^-1)
-        q = d.qpos[self._qpos_slice]
-        tau0 = self.osc.posture_stiffness * self._wrapped(self._posture - q)
-        tau0 -= self.osc.posture_damping * qvel
-        tau0 -= self._limit_gain * (np.minimum(q - self._lo, 0.0) + np.maximum(q - self._hi, 0.0))
-        # Lambda and Lambda J M^-1 tau0 from one solve of Lambda^-1 [Lambda | y] = [I | ...]
-        rhs = self._rhs
-        rhs[:, 6] = minv_arm @ tau0
-        lam_and_y = _spd_solve(j_arm @ minv_arm.T + self._eps, rhs)
-        lam_diag, lam_tau0 = lam_and_y[:, :6].diagonal(), lam_and_y[:, 6]
-        err = self._err
-        err[:3] = self._sp_pos - d.site_xpos[self._tcp_site]
-        err[3:] = rotvec(self._sp_mat @ d.site_xmat[self._tcp_site].reshape(3, 3).T)
-        # damping on the tool's velocity (less f times the setpoint's: OscConfig)
-        vel_err = j_arm @ qvel
-        if self.osc.velocity_feedforward:
-            vel_err -= self.osc.velocity_feedforward * self._sp_vel
-        wrench = self._k * err - self._damp_gain * np.sqrt(lam_diag) * vel_err
-        tau = j_arm.T @ (wrench - lam_tau0) + tau0
-        bias = d.qfrc_bias[dofs]
-        motor_room = np.maximum(self._torque_limit - np.abs(bias), 1e-3)  # after gravity
-        room = motor_room
-        if self._friction is not None:
-            room = np.maximum(room - self._friction, 1e-3)  # what the feed-forward below adds
-        # at the motors' limits the rotation yields first: a large orientation error (the
-        # small wrist motors' 6.8 N m) must not starve the force that holds the tool point on
-        # its path
-        rotation = j_arm[3:].T @ wrench[3:]
-        excess = np.abs(tau) / room
-        if float(np.max(excess)) > 1.0:
-            translation = tau - rotation
-            fit = float(np.max(np.abs(translation) / room))
-            if fit >= 1.0:
-                tau = translation / fit
-            else:
-                with np.errstate(divide="ignore"):
-                    share = (room - np.sign(rotation) * translation) / np.abs(rotation)
-                tau = translation + min(1.0, float(np.min(share))) * rotation
-        if self._friction is not None:
-            moving = np.minimum(np.abs(qvel) / self.osc.friction_velocity_scale, 1.0)
-            sticking = np.tanh(tau / self.osc.friction_torque_scale)
-            tau += self._friction * (moving * np.sign(qvel) + (1.0 - moving) * sticking)
-        # at a motor's limit, scale the whole task torque down rather than clip joints one by
-        # one: clipping would turn the Cartesian force away from the commanded direction
-        excess_all = float(np.max(np.abs(tau) / motor_room))
-        if excess_all > 1.0:
-            tau /= excess_all
-        if self._rotor_comp is not None:
-            bias = bias + self._rotor_comp * d.qacc[dofs]  # the torque loop (OscConfig)
-        np.clip(tau + bias, -self._torque_limit, self._torque_limit, out=d.ctrl[self._act_slice])
+        mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp_site)
+        mujoco.mj_fullM(m, d, self._full_m)
+        self._osc_torques(
+            self._jac, self._full_m, d.qpos, d.qvel, d.qacc, d.qfrc_bias, d.site_xpos,
+            d.site_xmat, d.ctrl, self._osc_index, self._sp_pos, self._sp_mat, self._sp_vel,
+            self._osc_joint, self._osc_gains,
+        )  # fmt: skip
 
-    def _solve_inertia(self, d: mujoco.MjData, jac: FloatArray, out: FloatArray) -> None:
-        """out (6, nv) = (M^-1 J^T)^T for the inertia the controller shapes: M less the rotor
-        inertia its torque loop hides (OscConfig.motor_inertia_compensation)."""
+    def _minv_jt_arm(self, d: mujoco.MjData) -> FloatArray:
+        """(6, 6) the arm dofs' rows of M^-1 J^T (`self._jac`) for the inertia the controller
+        shapes: M less the rotor inertia its torque loop hides
+        (OscConfig.motor_inertia_compensation)."""
+        dofs = self._dof_slice
         if self._rotor_comp is None:
-            mujoco.mj_solveM(self.model, d, out, jac)
-            return
+            mujoco.mj_solveM(self.model, d, self._minv_jt, self._jac)
+            return self._minv_jt[:, dofs].T
         full = self._full_m
         mujoco.mj_fullM(self.model, d, full)
-        full[self._arm_diag] -= self._rotor_comp
-        out[:] = _spd_solve(full, jac.T).T
+        self._full_flat[self._arm_diag_flat] -= self._rotor_comp
+        return _spd_solve(full, self._jac.T)[dofs]
 
     def _axis_dynamics(self, data: mujoco.MjData) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Each task-space axis as the OSC makes it (module docstring): stiffness K_ii, damping
         D_ii = 2 zeta sqrt(K_ii Lambda_ii), apparent mass Lambda_ii at `data`'s configuration
         (the arm's M less the rotor inertia the torque loop hides; the fingers ride along)."""
-        m = self.model
-        jac, minv_jt = np.zeros((6, m.nv)), np.zeros((6, m.nv))
-        mujoco.mj_jacSite(m, data, jac[:3], jac[3:], self._tcp_site)
-        self._solve_inertia(data, jac, minv_jt)
-        dofs = self._dof_slice
-        inverse = jac[:, dofs] @ minv_jt[:, dofs].T + self._eps
+        mujoco.mj_jacSite(self.model, data, self._jacp, self._jacr, self._tcp_site)
+        inverse = self._jac[:, self._dof_slice] @ self._minv_jt_arm(data) + self._eps
         lam = np.asarray(np.linalg.inv(inverse).diagonal(), dtype=float)
         damping = np.asarray(self._damp_gain * np.sqrt(lam), dtype=float)
         return np.asarray(self._k, dtype=float), damping, lam
@@ -481,41 +454,43 @@ class JacoSim(Embodiment):
         cached = _TAU_CACHE.get(key)
         if cached is not None:
             return cached
-        m = self.model
-        episode = (self.data, self.commanded_pose(), self._sp_vel, self._phase)
-        flags = m.opt.disableflags
-        m.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        # contacts off on a copy of the model: the (shared) model stays as it is
+        m = copy.copy(self.model)
+        m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        episode = (self.model, self.data, self._sp_pos, self._sp_mat, self._sp_vel, self._phase)
+        reached = (1.0 - math.exp(-1.0)) * TRACKING_STEP
+        window = round(TRACKING_WINDOW / TIMESTEP)
         rises = []
         try:
+            self.model = m
             for axis in np.eye(3):
                 self.data = scratch = mujoco.MjData(m)
                 self._phase = 0
                 scratch.qpos[self._arm_qpos] = self._posture
-                scratch.qpos[self._finger_qpos] = episode[0].qpos[self._finger_qpos]
-                scratch.ctrl[:] = episode[0].ctrl
+                scratch.qpos[self._finger_qpos] = episode[1].qpos[self._finger_qpos]
+                scratch.ctrl[:] = episode[1].ctrl
                 mujoco.mj_forward(m, scratch)
                 start = self.read_pose()
                 self._sp_vel = np.zeros(6)
                 self._apply_setpoint(start.moved(TRACKING_STEP * axis))
-                rise = TRACKING_WINDOW
-                for i in range(1, round(TRACKING_WINDOW / TIMESTEP) + 1):
-                    self._step(1)
-                    moved = (scratch.site_xpos[self._tcp_site] - start.position) @ axis
-                    if moved >= (1.0 - math.exp(-1.0)) * TRACKING_STEP:
-                        rise = i * TIMESTEP
+                rise, done = TRACKING_WINDOW, 0
+                while done < window:
+                    n = min(FILTER_STEPS, window - done)
+                    self._step(n)
+                    # the tool point at the start of each of these substeps, oldest first
+                    tool = self._filter_samples()[FILTER_STEPS - n :, TCP_COLUMNS]
+                    hit = np.flatnonzero((tool - start.position) @ axis >= reached)
+                    if hit.size:
+                        rise = (done + int(hit[0]) + 1) * TIMESTEP
                         break
+                    done += n
                 rises.append(rise)
         finally:
-            m.opt.disableflags = flags
-            self.data, setpoint, self._sp_vel, self._phase = episode
-            self._apply_setpoint(setpoint)
+            self.model, self.data, pos, mat, self._sp_vel, self._phase = episode
+            self._apply_setpoint_matrix(pos, mat)
         tau = float(np.mean(rises))
         _TAU_CACHE[key] = tau
         return tau
-
-    @staticmethod
-    def _wrapped(a: FloatArray) -> FloatArray:
-        return (a + np.pi) % (2 * np.pi) - np.pi
 
     def _step(self, n: int) -> None:
         """n substeps; the OSC's torques are updated every `OscConfig.control_substeps` of them
@@ -538,25 +513,15 @@ class JacoSim(Embodiment):
     def _set_setpoint_velocity(self, twist: FloatArray) -> None:
         self._sp_vel = np.asarray(twist, dtype=float)
 
-    def _apply_setpoint(self, pose: Pose) -> None:
-        self._setpoint = pose
-        self._sp_pos = np.asarray(pose.position, dtype=float)
-        self._sp_mat = pose.orientation.as_matrix()
-
-    setpoint_as_matrix = True  # the OSC works on the setpoint's rotation matrix
-
     def _apply_setpoint_matrix(self, position: FloatArray, rotation: FloatArray) -> None:
-        self._setpoint = None  # built from the matrices when asked (commanded_pose)
         self._sp_pos = position
         self._sp_mat = rotation
 
+    def _setpoint(self) -> tuple[FloatArray, FloatArray]:
+        return self._sp_pos, self._sp_mat
+
     def _rest_at_measured(self) -> None:
         self._apply_setpoint(self.read_pose())
-
-    def commanded_pose(self) -> Pose:
-        if self._setpoint is None:
-            self._setpoint = Pose(self._sp_pos.copy(), rotation_from_matrix(self._sp_mat))
-        return self._setpoint
 
     def _hand_extent(self, finger_angle: float, palm_only: bool = False) -> float:
         """[m] how far the hand (or its palm alone) reaches along its approach axis beyond the
@@ -613,7 +578,7 @@ class JacoSim(Embodiment):
 
     def set_posture(self, q: FloatArray) -> None:
         """(6,) [rad] the null-space posture the controller holds the arm near."""
-        self._posture = np.asarray(q, dtype=float).copy()
+        self._set_posture(np.asarray(q, dtype=float))
 
     def joint_positions(self) -> FloatArray:
         """(6,) [rad] the arm's joint angles."""
@@ -698,15 +663,23 @@ class JacoSim(Embodiment):
         mujoco.mj_resetData(self.model, d)
         self._phase = 0
         d.qpos[self._arm_qpos] = q
-        self._posture = q.copy()
+        self._set_posture(q)
         d.qpos[self._finger_qpos] = self.grasp_kind.finger_start
         d.ctrl[self._finger_act] = self.grasp_kind.finger_target
         self._apply_setpoint(pose)
 
 
 def build_model(task: TaskConfig, base: FloatArray) -> mujoco.MjModel:
-    """The task's scene with the Jaco arm standing at `base` (3,) [m], hand on its flange."""
-    return build_spec(task, base).compile()
+    """The task's scene with the Jaco arm standing at `base` (3,) [m], hand on its flange, and
+    the wrist sensor's filter (sim.robot_adapter.add_wrench_filter). Built once per task
+    configuration, base and process and shared: do not modify it (copy it:
+    `copy.copy(model)`)."""
+    return _compiled(task, (float(base[0]), float(base[1]), float(base[2])))
+
+
+@functools.lru_cache(maxsize=32)
+def _compiled(task: TaskConfig, base: tuple[float, float, float]) -> mujoco.MjModel:
+    return build_spec(task, np.asarray(base, dtype=float)).compile()
 
 
 def build_spec(
@@ -715,18 +688,14 @@ def build_spec(
     """`build_model`'s spec, before compiling (more can be composed in: a camera)."""
     spec = scene_spec(task, solid_for_arms=solid_for_arms)
     model_dir = jaco_model_dir()
-    frame = spec.worldbody.add_frame(pos=list(map(float, base)))
+    frame = spec.worldbody.add_frame(pos=[float(v) for v in base])
     spec.attach(_arm_spec(model_dir), prefix=ARM_PREFIX, frame=frame)
-    spec.add_sensor(
-        name=FORCE_SENSOR,
-        type=mujoco.mjtSensor.mjSENS_FORCE,
-        objtype=mujoco.mjtObj.mjOBJ_SITE,
-        objname=FLANGE_SITE,
-    )
-    spec.add_sensor(
-        name=TORQUE_SENSOR,
-        type=mujoco.mjtSensor.mjSENS_TORQUE,
-        objtype=mujoco.mjtObj.mjOBJ_SITE,
-        objname=FLANGE_SITE,
+    for name, kind in (
+        (FORCE_SENSOR, mujoco.mjtSensor.mjSENS_FORCE),
+        (TORQUE_SENSOR, mujoco.mjtSensor.mjSENS_TORQUE),
+    ):
+        spec.add_sensor(name=name, type=kind, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=FLANGE_SITE)
+    add_wrench_filter(
+        spec, tcp_site=TCP_SITE, hand_body=HAND_BODY, object_body=OBJECT_PREFIX + OBJECT_BODY
     )
     return spec

@@ -7,13 +7,14 @@ hand geoms (contact) and its TCP site.
 
 from __future__ import annotations
 
+import math
+
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from constraint_aware.geometry import FloatArray, unit
+from constraint_aware.geometry import FloatArray
 from constraint_aware.sim.objects import HANDLE_SITE, OBJECT_GEOM_PREFIX, OBJECT_JOINT
-from constraint_aware.sim.robot_adapter import rotation_from_matrix
+from constraint_aware.sim.robot_adapter import cross, rotvec
 from constraint_aware.sim.tasks import TaskConfig
 
 
@@ -41,7 +42,7 @@ class GroundTruthMonitor:
         self._hand_mask[list(hand_geoms)] = True
         self._object_mask = np.zeros(m.ngeom, dtype=bool)
         self._object_mask[list(self._object_geoms)] = True
-        self._grasp_rel: tuple[FloatArray, Rotation] | None = None
+        self._grasp_rel: tuple[FloatArray, FloatArray] | None = None
 
     def _record_grasp(self) -> None:
         """Remember the hand's pose in the handle's frame: slip is measured from here."""
@@ -58,28 +59,30 @@ class GroundTruthMonitor:
 
     def admissible_direction(self) -> FloatArray:
         d = self.data
-        axis = d.xaxis[self._obj_joint].copy()
+        axis = d.xaxis[self._obj_joint]
         if self.task.object.joint_type == "prismatic":
-            return unit(axis)
+            return _unit(axis)
         radial = d.site_xpos[self._tcp_site] - d.xanchor[self._obj_joint]
-        return unit(np.cross(axis, radial - (radial @ axis) * axis))
+        return _unit(cross(axis, radial - (radial @ axis) * axis))
 
     def handle_position(self) -> FloatArray:
         return self.data.site_xpos[self._handle_site].copy()
 
-    def _hand_in_handle(self) -> tuple[FloatArray, Rotation]:
+    def _hand_in_handle(self) -> tuple[FloatArray, FloatArray]:
+        """The TCP in the handle's frame: position (3,) [m] and rotation matrix (3, 3)."""
         d = self.data
-        h_rot = rotation_from_matrix(d.site_xmat[self._handle_site])
-        t_rot = rotation_from_matrix(d.site_xmat[self._tcp_site])
-        rel = h_rot.inv().apply(d.site_xpos[self._tcp_site] - d.site_xpos[self._handle_site])
-        return rel, h_rot.inv() * t_rot
+        handle = d.site_xmat[self._handle_site].reshape(3, 3)
+        tcp = d.site_xmat[self._tcp_site].reshape(3, 3)
+        rel = (d.site_xpos[self._tcp_site] - d.site_xpos[self._handle_site]) @ handle
+        return rel, handle.T @ tcp
 
     def slip(self) -> tuple[float, float]:
         if self._grasp_rel is None:
             return 0.0, 0.0
         rel, rot = self._hand_in_handle()
         rel0, rot0 = self._grasp_rel
-        return float(np.linalg.norm(rel - rel0)), float(np.degrees((rot0.inv() * rot).magnitude()))
+        turn = rotvec(rot0.T @ rot)
+        return float(np.linalg.norm(rel - rel0)), math.degrees(math.sqrt(float(turn @ turn)))
 
     def in_contact(self) -> bool:
         """Whether any hand geom touches any object geom."""
@@ -98,3 +101,9 @@ class GroundTruthMonitor:
         if limit is not None and ang > limit:
             return f"grasp lost: hand turned {ang:.0f} deg relative to the handle"
         return None
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    """v (3,) normalized, a new array (geometry.unit's rule: the zero vector below 1e-12)."""
+    norm = math.sqrt(float(v @ v))
+    return v / norm if norm > 1e-12 else np.zeros(3)

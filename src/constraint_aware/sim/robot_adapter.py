@@ -3,9 +3,17 @@
 `SimulatedRobot` owns what does not depend on the arm: the control period, the wrist sensor's
 filter and sign convention, the Cartesian interpolation of each period's setpoint, and the
 `read_*`/`command_*`/`advance` methods. An embodiment says only how a TCP pose setpoint reaches
-its controller (`_apply_setpoint`), how the physics advances (`_step`: plain `mj_step` for
-servo-driven joints, a control law per substep for a torque-controlled arm), and how the grasp
-is placed (`_place`, see sim/grasp.py).
+its controller (`_apply_setpoint_matrix`, or a period's pieces all at once: `_ramp`), where
+the setpoint is (`_setpoint`), how the physics advances (`_step`: plain `mj_step` for
+servo-driven joints, a control law every few substeps for a torque-controlled arm), and how the
+grasp is placed (`_place`, see sim/grasp.py).
+
+The wrist sensor's filter is read from MuJoCo's own sensor history: the model carries, at the
+tool point, force and torque sensors, the tool frame and the hand-object contacts as sensors
+that keep their last `FILTER_STEPS` samples (`add_wrench_filter`), so a period is a few
+`mj_step` calls and one read of that history, with no Python between the substeps. Rotations
+are numpy matrices throughout; scipy's Rotation appears only where the `Robot` protocol's
+`Pose` needs one.
 """
 
 from __future__ import annotations
@@ -15,9 +23,9 @@ from abc import ABC, abstractmethod
 
 import mujoco
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
-from constraint_aware.errors import InvalidInputError
+from constraint_aware.errors import CapError, ConfigError, InvalidInputError
 from constraint_aware.geometry import FloatArray
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose, Wrench
@@ -27,17 +35,53 @@ CONTROL_PERIOD = 0.1  # [s] paper 5.1: the direction is updated every 100 ms
 RAMP_CHUNKS = 10  # the commanded pose is interpolated over the period in this many pieces
 SETTLE_TIME = 0.4  # [s] after placing the hand, and again after re-targeting the wrist
 FILTER_STEPS = 10  # the wrench is averaged over the last 10 substeps (20 ms) of a period
+#: where each piece of the period's setpoint ramp lies between the last setpoint and the goal
+RAMP_FRACTIONS = np.arange(1, RAMP_CHUNKS + 1) / RAMP_CHUNKS
 
 
 def rotation_matrix(rotvec: FloatArray) -> FloatArray:
-    """(3, 3) the rotation of a rotation vector (3,) [rad] (Rodrigues; scipy's costs ~10x
-    more per call, and the interpolator calls it every chunk)."""
-    angle = math.sqrt(float(rotvec @ rotvec))
-    if angle < 1e-12:
-        return np.eye(3)
-    x, y, z = rotvec / angle
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+    """(3, 3) the rotation of a rotation vector (3,) [rad] (Rodrigues)."""
+    return rotation_matrices(np.asarray(rotvec, dtype=float).reshape(1, 3))[0]
+
+
+def rotation_matrices(rotvecs: FloatArray) -> FloatArray:
+    """(k, 3, 3) the rotations of k rotation vectors (k, 3) [rad] (Rodrigues, all at once)."""
+    angles = np.sqrt(np.einsum("ki,ki->k", rotvecs, rotvecs))
+    out = np.empty((len(rotvecs), 3, 3))
+    out[:] = np.eye(3)
+    turning = angles >= 1e-12
+    if not turning.any():
+        return out
+    axes = rotvecs[turning] / angles[turning, None]
+    x, y, z = axes.T
+    zero = np.zeros_like(x)
+    k = np.stack([zero, -z, y, z, zero, -x, -y, x, zero], axis=1).reshape(-1, 3, 3)
+    sin = np.sin(angles[turning])[:, None, None]
+    versine = (1.0 - np.cos(angles[turning]))[:, None, None]
+    out[turning] += sin * k + versine * (k @ k)
+    return out
+
+
+def rotvec(rot: FloatArray) -> FloatArray:
+    """(3,) rotation vector [rad] of a (3, 3) rotation matrix."""
+    (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot.tolist()
+    x, y, z = 0.5 * (r21 - r12), 0.5 * (r02 - r20), 0.5 * (r10 - r01)
+    s = math.sqrt(x * x + y * y + z * z)
+    angle = math.atan2(s, 0.5 * (r00 + r11 + r22 - 1.0))
+    if s < 1e-9:
+        return np.array([x, y, z])  # angle ~ 0: the rotation vector is v itself
+    if angle > math.pi - 1e-3:
+        return np.asarray(Rotation.from_matrix(rot).as_rotvec())  # near pi: v loses the axis
+    f = angle / s
+    return np.array([x * f, y * f, z * f])
+
+
+def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """(..., 3) a x b for (..., 3) vectors (np.cross's axis handling costs more than the
+    product at this size)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
 def rotation_from_matrix(matrix: FloatArray) -> Rotation:
@@ -46,6 +90,67 @@ def rotation_from_matrix(matrix: FloatArray) -> Rotation:
     quat = np.empty(4)
     mujoco.mju_mat2Quat(quat, np.ascontiguousarray(matrix, dtype=float).reshape(9))
     return Rotation.from_quat(quat[[1, 2, 3, 0]])  # (x, y, z, w): scipy's order
+
+
+#: The wrist sensor's filter reads these sensors, each keeping its last `FILTER_STEPS` samples:
+#: (name suffix, MuJoCo sensor type). All sit at the tool point's site, on the hand's body:
+#: the force and torque the arm exerts on the hand (about the tool point, in its frame), the
+#: tool frame's axes and position (world), and then the hand-object contacts.
+FILTER_SENSORS = (
+    ("force", "FORCE"),
+    ("torque", "TORQUE"),
+    ("tcp_x", "FRAMEXAXIS"),
+    ("tcp_y", "FRAMEYAXIS"),
+    ("tcp_z", "FRAMEZAXIS"),
+    ("tcp_pos", "FRAMEPOS"),
+)
+FILTER_CONTACT = "contact"  # name suffix of the hand-object contact sensor
+FILTER_PREFIX = "filter_"  # the filter sensors' names: "filter_force", ...
+#: Columns of `SimulatedRobot._filter_samples`: the sensors above in order (3 each), contacts
+TCP_COLUMNS = slice(15, 18)  # the tool point's position
+CONTACT_COLUMN = 18
+#: The wrench in world frame as one product: R f = sum over a of f_a times the frame's axis a,
+#: for force and torque; `_WRENCH_FACTORS` picks f_a, `_WRENCH_AXES` the axis' components.
+_WRENCH_FACTORS = np.repeat(np.arange(6), 3)
+_WRENCH_AXES = np.tile(np.arange(6, 15), 2)
+
+
+def add_wrench_filter(
+    spec: mujoco.MjSpec, *, tcp_site: str, hand_body: str, object_body: str
+) -> None:
+    """Give a composed robot-and-object spec the sensors the wrist sensor's filter reads
+    (`FILTER_SENSORS` at the site `tcp_site`, which must be on the hand's body, and the number
+    of contacts between the hand, `hand_body` and every body below it, and the object,
+    `object_body`), each keeping its last `FILTER_STEPS` samples (MuJoCo's sensor history).
+    Names are the composed spec's."""
+    sensor = mujoco.mjtSensor
+    for suffix, kind in FILTER_SENSORS:
+        spec.add_sensor(
+            name=FILTER_PREFIX + suffix,
+            type=getattr(sensor, "mjSENS_" + kind),
+            objtype=mujoco.mjtObj.mjOBJ_SITE,
+            objname=tcp_site,
+            nsample=FILTER_STEPS,
+        )
+    spec.add_sensor(
+        name=FILTER_PREFIX + FILTER_CONTACT,
+        type=sensor.mjSENS_CONTACT,
+        objtype=mujoco.mjtObj.mjOBJ_XBODY,  # the hand's subtree
+        objname=hand_body,
+        reftype=mujoco.mjtObj.mjOBJ_BODY,
+        refname=object_body,
+        intprm=[1, 0, 1],  # data "found" (the number of matching contacts), no reduction, 1
+        nsample=FILTER_STEPS,
+    )
+
+
+def consecutive(index: FloatArray, what: str) -> slice:
+    """A slice for consecutive indices (views instead of copies in the control loop);
+    CapError naming `what` if they are not consecutive."""
+    first = int(index[0])
+    if not np.array_equal(index, np.arange(first, first + len(index))):
+        raise CapError(f"{what} are not consecutive: {index}")
+    return slice(first, first + len(index))
 
 
 def period_substeps(period: float) -> int:
@@ -92,6 +197,46 @@ def step_rise_time(stiffness: float, damping: float, mass: float) -> float:
     return 0.5 * (lo + hi)
 
 
+def _history_index(model: mujoco.MjModel, names: list[str]) -> tuple[np.ndarray, int]:
+    """Where the last `FILTER_STEPS` samples of the sensors `names` are in `MjData.history`:
+    an index array (FILTER_STEPS, FILTER_STEPS, sum of the sensors' dims) [cursor, sample
+    (oldest first), column] and the history address of the first sensor's cursor.
+
+    MuJoCo keeps each sensor's samples in a ring: at its `sensor_historyadr` the last tick
+    time, the cursor (the newest sample's slot), the samples' times, then the samples
+    (`nsample` x dim). Every filter sensor records at every `mj_step`, so their cursors move
+    together and one read of the first one locates all."""
+    values, dims = [], []
+    for name in names:
+        try:
+            sensor = model.sensor(name)
+        except KeyError:
+            raise ConfigError(
+                "model",
+                f"no sensor {name!r}",
+                "a model built with sim.robot_adapter.add_wrench_filter",
+            ) from None
+        i = sensor.id
+        n = int(model.sensor_history[i, 0])
+        if n != FILTER_STEPS or model.sensor_delay[i] != 0 or model.sensor_interval[i, 0] != 0:
+            raise ConfigError(
+                f"model sensor {name}",
+                f"nsample {n}, delay {model.sensor_delay[i]}, interval {model.sensor_interval[i]}",
+                f"nsample {FILTER_STEPS}, no delay, no interval (add_wrench_filter)",
+            )
+        # the samples follow the last tick time, the cursor and the samples' times
+        values.append(int(model.sensor_historyadr[i]) + 2 + FILTER_STEPS)
+        dims.append(int(model.sensor_dim[i]))
+    # per column: its sensor's samples' address, the sensor's dim, the column's place in it
+    start = np.repeat(values, dims)
+    dim = np.repeat(dims, dims)
+    within = np.concatenate([np.arange(k) for k in dims])
+    cursor = np.arange(FILTER_STEPS)[:, None, None]
+    slot = (cursor + 1 + np.arange(FILTER_STEPS)[None, :, None]) % FILTER_STEPS  # oldest first
+    index = start + slot * dim + within
+    return index.astype(np.intp), values[0] - FILTER_STEPS - 1
+
+
 class SimulatedRobot(ABC):
     """A MuJoCo hand on a compliant arm with a wrist F/T sensor, as the executor sees it.
 
@@ -103,20 +248,36 @@ class SimulatedRobot(ABC):
     task: TaskConfig
     _arm_act: FloatArray  # the arm's actuator ids (one per Cartesian axis for servo arms)
     _period_steps: int = round(CONTROL_PERIOD / TIMESTEP)
+    _piece_steps: np.ndarray  # (RAMP_CHUNKS,) int: substeps of each of the period's pieces
     settle_time: float = SETTLE_TIME  # [s] of each settling phase of the grasp (sim/grasp.py)
     _tracking_time_constant: float | None = None  # [s] fixed at reset (Embodiment.reset)
 
     def _bind_sensor(self, wrist_site: str, tcp_site: str, force: str, torque: str) -> None:
-        """Resolve the sensor's names to ids once."""
+        """Resolve the sensor's names to ids once, and where the filter's samples are in
+        MuJoCo's history buffer (the model needs `add_wrench_filter`'s sensors)."""
         m = self.model
         self._wrist_site = m.site(wrist_site).id
         self._tcp_site = m.site(tcp_site).id
         fs, ts = m.sensor(force), m.sensor(torque)
         self._force_adr = slice(int(fs.adr[0]), int(fs.adr[0]) + 3)
         self._torque_adr = slice(int(ts.adr[0]), int(ts.adr[0]) + 3)
+        names = [FILTER_PREFIX + f[0] for f in FILTER_SENSORS] + [FILTER_PREFIX + FILTER_CONTACT]
+        self._filter_index, self._filter_cursor = _history_index(m, names)
+        tcp_body, wrist_body = m.site_bodyid[self._tcp_site], m.site_bodyid[self._wrist_site]
+        if m.sensor(names[0]).objid[0] != self._tcp_site or tcp_body != wrist_body:
+            raise ConfigError(
+                "model",
+                f"the filter's sensors are not at {tcp_site!r} on the wrist sensor's body",
+                "add_wrench_filter(spec, tcp_site=<the tool point on the hand's body>, ...)",
+            )
+        self._wrench_factors = self._filter_index[:, :, _WRENCH_FACTORS]
+        self._wrench_axes = self._filter_index[:, :, _WRENCH_AXES]
+        self._contact_index = self._filter_index[:, :, CONTACT_COLUMN]
         self._filtered = np.zeros(6)
         self._touched = False
         self._next_pose: Pose | None = None
+        self._last_rotation: Rotation | None = None
+        self._last_matrix = np.eye(3)
 
     # --- what an embodiment provides -------------------------------------------------------
     @abstractmethod
@@ -128,16 +289,18 @@ class SimulatedRobot(ABC):
         """Put the arm's state at the grasp pose and the fingers at their grasp targets."""
 
     @abstractmethod
-    def _apply_setpoint(self, pose: Pose) -> None:
-        """Make `pose` the compliant controller's current TCP setpoint."""
+    def _apply_setpoint_matrix(self, position: FloatArray, rotation: FloatArray) -> None:
+        """Make the TCP pose (position (3,) [m], rotation matrix (3, 3)) the compliant
+        controller's current setpoint."""
+
+    @abstractmethod
+    def _setpoint(self) -> tuple[FloatArray, FloatArray]:
+        """The compliant controller's current setpoint: position (3,) [m] and rotation matrix
+        (3, 3), as the interpolator starts from it."""
 
     @abstractmethod
     def _rest_at_measured(self) -> None:
         """Set the setpoint to where the hand is (no preload from the grasp)."""
-
-    @abstractmethod
-    def commanded_pose(self) -> Pose:
-        """The compliant controller's current setpoint."""
 
     @abstractmethod
     def in_contact(self) -> bool:
@@ -197,13 +360,35 @@ class SimulatedRobot(ABC):
             return self._free_space_time_constant()
         return float(self._tracking_time_constant)
 
-    #: whether the interpolator hands each piece to `_apply_setpoint_matrix` (a controller
-    #: that works on matrices: no Rotation objects per piece) instead of `_apply_setpoint`
-    setpoint_as_matrix: bool = False
+    def _apply_setpoint(self, pose: Pose) -> None:
+        """Make `pose` the compliant controller's current TCP setpoint."""
+        self._apply_setpoint_matrix(
+            np.asarray(pose.position, dtype=float), pose.orientation.as_matrix()
+        )
 
-    def _apply_setpoint_matrix(self, position: FloatArray, rotation: FloatArray) -> None:
-        """`_apply_setpoint` from a position (3,) [m] and a rotation matrix (3, 3)."""
-        self._apply_setpoint(Pose(position, Rotation.from_matrix(rotation)))
+    def commanded_pose(self) -> Pose:
+        """The compliant controller's current setpoint."""
+        position, rotation = self._setpoint()
+        return Pose(position.copy(), rotation_from_matrix(rotation))
+
+    def _ramp(
+        self, start: FloatArray, shift: FloatArray, start_rotation: FloatArray, turn: FloatArray
+    ) -> None:
+        """Run one period's setpoint ramp: piece i (of `RAMP_CHUNKS`) holds the setpoint
+        start + f_i shift, rotated by f_i turn from start_rotation (f_i = `RAMP_FRACTIONS`[i];
+        start, shift (3,) [m], start_rotation (3, 3), turn (3,) [rad] a world-frame rotation
+        vector) for `_piece_steps`[i] substeps; the setpoint velocity drops to zero for the
+        last piece (it rests at the goal). Override to hand the controller every piece at
+        once."""
+        fractions = RAMP_FRACTIONS[:, None]
+        positions = start + fractions * shift
+        rotations = rotation_matrices(fractions * turn) @ start_rotation
+        last = RAMP_CHUNKS - 1
+        for i, n in enumerate(self._piece_steps.tolist()):
+            if i == last:
+                self._set_setpoint_velocity(np.zeros(6))
+            self._apply_setpoint_matrix(positions[i], rotations[i])
+            self._step(n)
 
     def _step(self, n: int) -> None:
         """Advance the physics `n` substeps (override to run a control law per substep)."""
@@ -222,7 +407,10 @@ class SimulatedRobot(ABC):
 
     @control_period_s.setter
     def control_period_s(self, period: float) -> None:
-        self._period_steps = period_substeps(period)
+        self._period_steps = steps = period_substeps(period)
+        # substeps of each piece: equal pieces, each starting at the nearest substep
+        bounds = [round(i * steps / RAMP_CHUNKS) for i in range(RAMP_CHUNKS + 1)]
+        self._piece_steps = np.diff(bounds)
 
     @property
     def control_period(self) -> float:
@@ -239,27 +427,29 @@ class SimulatedRobot(ABC):
         return np.concatenate([force, torque_wrist + np.cross(lever, force)])
 
     def _settle_filter(self) -> None:
-        """Step `FILTER_STEPS` substeps, averaging the wrench as the sensor's filter does."""
-        self._filter_start()
-        for _ in range(FILTER_STEPS):
-            self._filter_step()
-        self._filter_end()
+        """Step `FILTER_STEPS` substeps and read the wrench as the sensor's filter does."""
+        self._step(FILTER_STEPS)
+        self._read_filter()
 
-    def _filter_start(self) -> None:
-        self._acc = np.zeros(6)
-        self._acc_touched = False
-        self._acc_n = 0
+    def _filter_samples(self) -> FloatArray:
+        """(FILTER_STEPS, 19) the filter sensors' samples of the last `FILTER_STEPS` substeps,
+        oldest first, each as the data reads after that substep's `mj_step` (computed at its
+        start). Columns: `FILTER_SENSORS` (3 each), then the number of hand-object contacts."""
+        history = self.data.history
+        return history[self._filter_index[int(history[self._filter_cursor])]]
 
-    def _filter_step(self) -> None:
-        """One substep inside the filter window: step, then sample wrench and contact."""
-        self._step(1)
-        self._acc += self._sample_wrench()
-        self._acc_touched = self._acc_touched or self.in_contact()
-        self._acc_n += 1
-
-    def _filter_end(self) -> None:
-        self._filtered = self._acc / self._acc_n
-        self._touched = self._acc_touched
+    def _read_filter(self) -> None:
+        """The sensor's filter over the last `FILTER_STEPS` substeps, from MuJoCo's history:
+        the mean of the instantaneous wrench (`_sample_wrench` of each substep) and whether the
+        hand touched the object in any of them."""
+        history = self.data.history
+        cursor = int(history[self._filter_cursor])
+        terms = history[self._wrench_factors[cursor]] * history[self._wrench_axes[cursor]]
+        # [sample, force or torque, the frame's axis, world component]; MuJoCo reports the
+        # arm's action on the hand: F_s is its opposite
+        total = terms.reshape(FILTER_STEPS, 2, 3, 3).sum(axis=2).sum(axis=0)
+        self._filtered = total.reshape(6) / -FILTER_STEPS
+        self._touched = bool(history[self._contact_index[cursor]].any())
 
     def set_sensor_noise(
         self, rng: np.random.Generator, noise: float, bias: FloatArray | None = None
@@ -312,35 +502,23 @@ class SimulatedRobot(ABC):
         the last setpoint to the commanded one in `RAMP_CHUNKS` equal pieces, as an arm's
         Cartesian interpolator does, reaching the goal at the start of the last piece; the
         wrench is filtered over the period's last `FILTER_STEPS` substeps (20 ms)."""
-        start = self.commanded_pose()
-        goal = self._next_pose if self._next_pose is not None else start
-        fractions = [i / RAMP_CHUNKS for i in range(1, RAMP_CHUNKS + 1)]
-        if not self.setpoint_as_matrix:
-            pair = Rotation.concatenate([start.orientation, goal.orientation])
-            orientations = Slerp([0.0, 1.0], pair)(fractions)  # one call: slow per call
+        start, start_rotation = self._setpoint()
+        goal = self._next_pose
+        if goal is None:
+            shift, turn = np.zeros(3), np.zeros(3)
+        else:
+            shift = np.asarray(goal.position, dtype=float) - start
+            # slerp: about the one axis of the world-frame turn from the start to the goal
+            turn = rotvec(self._rotation_matrix(goal.orientation) @ start_rotation.T)
         steps = self._period_steps
-        # substep at which each piece starts (equal pieces, to the nearest substep), and the end
-        bounds = [round(i * steps / RAMP_CHUNKS) for i in range(RAMP_CHUNKS + 1)]
-        filter_from = steps - FILTER_STEPS
-        turn = (goal.orientation * start.orientation.inv()).as_rotvec()
-        shift = goal.position - start.position
-        first_rotation = start.orientation.as_matrix()
         self._set_setpoint_velocity(np.concatenate([shift, turn]) / (steps * TIMESTEP))
-        self._filter_start()
-        for i, f in enumerate(fractions, start=1):
-            if i == RAMP_CHUNKS:
-                self._set_setpoint_velocity(np.zeros(6))  # the setpoint rests at the goal
-            position = start.position + f * shift
-            if self.setpoint_as_matrix:
-                # slerp: the turn's rotation vector scaled (the rotations of scipy's Slerp)
-                self._apply_setpoint_matrix(position, rotation_matrix(f * turn) @ first_rotation)
-            else:
-                self._apply_setpoint(Pose(position, orientations[i - 1]))
-            first, last = bounds[i - 1], bounds[i]
-            plain = min(last, max(first, filter_from)) - first
-            if plain > 0:
-                self._step(plain)
-            for _ in range(first + plain, last):
-                self._filter_step()
-        self._filter_end()
+        self._ramp(start, shift, start_rotation, turn)
+        self._read_filter()
         self._next_pose = None
+
+    def _rotation_matrix(self, rotation: Rotation) -> FloatArray:
+        """(3, 3) of a commanded orientation; the last one's is kept, since a command that
+        does not turn the hand hands the same (immutable) Rotation back period after period."""
+        if rotation is not self._last_rotation:
+            self._last_rotation, self._last_matrix = rotation, rotation.as_matrix()
+        return self._last_matrix

@@ -6,32 +6,44 @@ success; sim/monitor.py) without importing the executor. This module holds only 
 specific to this hand: its model (`build_spec`: the scene with the hand composed in), the
 pose <-> arm-joint mapping of its virtual arm, and where it holds each handle. The grasp
 choreography is sim/grasp.py.
+
+A task's compiled model is built once per process and shared by every simulation of that
+task (`build_model`): runs of the same task configuration (a sweep's controllers on one seed's
+draw) each get their own `MjData` on it.
 """
 
 from __future__ import annotations
+
+import functools
+import math
 
 import mujoco
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.geometry import FloatArray
-from constraint_aware.sim.embodiment import Embodiment
+from constraint_aware.sim.base import Embodiment
 from constraint_aware.sim.hand import (
     ARM_JOINTS,
     FINGER_JOINTS,
     FORCE_SENSOR,
+    HAND_BODY,
     HAND_GEOM_PREFIX,
     TCP_SITE,
     TORQUE_SENSOR,
     WRIST_SITE,
     hand_spec,
 )
+from constraint_aware.sim.objects import OBJECT_BODY
 from constraint_aware.sim.robot_adapter import (
     CONTROL_PERIOD,
     FILTER_STEPS,
     RAMP_CHUNKS,
+    RAMP_FRACTIONS,
     SETTLE_TIME,
     TIMESTEP,
+    add_wrench_filter,
+    consecutive,
 )
 from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
 from constraint_aware.sim.tasks import TaskConfig
@@ -44,7 +56,9 @@ __all__ = [
     "SETTLE_TIME",
     "TIMESTEP",
     "ManipulationSim",
+    "build_filtered_spec",
     "build_mjcf",
+    "build_model",
     "build_spec",
 ]
 
@@ -69,6 +83,27 @@ def build_mjcf(task: TaskConfig) -> str:
     return str(build_spec(task).to_xml())
 
 
+@functools.lru_cache(maxsize=32)
+def build_model(task: TaskConfig, *, solid_for_arms: bool = False) -> mujoco.MjModel:
+    """The compiled model `ManipulationSim` runs: `build_spec` with the wrist sensor's filter
+    (sim.robot_adapter.add_wrench_filter). Built once per task configuration and process and
+    shared: do not modify it (copy it: `copy.copy(model)`)."""
+    return build_filtered_spec(task, solid_for_arms=solid_for_arms).compile()
+
+
+def build_filtered_spec(task: TaskConfig, *, solid_for_arms: bool = False) -> mujoco.MjSpec:
+    """`build_model`'s spec before compiling (more can be composed in: a camera)."""
+    spec = build_spec(task, solid_for_arms=solid_for_arms)
+    h = HOOK_PREFIX
+    add_wrench_filter(
+        spec,
+        tcp_site=h + TCP_SITE,
+        hand_body=h + HAND_BODY,
+        object_body=OBJECT_PREFIX + OBJECT_BODY,
+    )
+    return spec
+
+
 class ManipulationSim(Embodiment):
     """One task in MuJoCo with the hook hand, from reset and grasp to per-period stepping.
 
@@ -83,7 +118,7 @@ class ManipulationSim(Embodiment):
         control_period: float = CONTROL_PERIOD,
     ) -> None:
         self.task = task
-        self.model = model if model is not None else build_spec(task).compile()
+        self.model = model if model is not None else build_model(task)
         self.data = mujoco.MjData(self.model)
         self.control_period_s = control_period
         m = self.model
@@ -92,42 +127,97 @@ class ManipulationSim(Embodiment):
         self._arm_qpos = np.array([m.jnt_qposadr[m.joint(h + j).id] for j in ARM_JOINTS])
         self._finger_qpos = np.array([m.jnt_qposadr[m.joint(h + j).id] for j in FINGER_JOINTS])
         self._arm_act = np.array([m.actuator(h + j).id for j in ARM_JOINTS])
+        self._arm_ctrl = consecutive(self._arm_act, "the hook hand's arm actuators")
         self._finger_act = np.array([m.actuator(h + j).id for j in FINGER_JOINTS])
         self._bind_sensor(h + WRIST_SITE, h + TCP_SITE, h + FORCE_SENSOR, h + TORQUE_SENSOR)
         names = [m.geom(i).name for i in range(m.ngeom)]
         hand = {i for i, n in enumerate(names) if n.startswith(h + HAND_GEOM_PREFIX)}
         self._bind_monitor(hand, OBJECT_PREFIX)
         self._mount = Rotation.from_matrix(task.hand_mount())
+        self._mount_matrix = self._mount.as_matrix()
         self._tcp_local = np.array([0.0, 0.0, task.hand.tcp_depth])
         self._target = np.zeros(6)
+        # `_ramp`'s work arrays: the I, K, K^2 terms and the [1, sin, 1 - cos] coefficients
+        self._ramp_terms = np.zeros((3, 8))
+        self._ramp_coefficients = np.ones((RAMP_CHUNKS, 3))
 
     # --- pose <-> arm joints --------------------------------------------------------------
-    def _joint_targets(self, pose: Pose) -> FloatArray:
-        wrist = pose.position - pose.orientation.apply(self._tcp_local)
-        yaw, pitch, roll = (pose.orientation * self._mount.inv()).as_euler("ZYX")
-        return np.array([*wrist, yaw, pitch, roll])
-
-    def _set_arm_ctrl(self, q: FloatArray) -> None:
-        self.data.ctrl[self._arm_act] = q
+    def _joint_targets(self, positions: FloatArray, rotations: FloatArray) -> FloatArray:
+        """(k, 6) arm joint targets (wrist x, y, z [m]; yaw, pitch, roll [rad] of the hand
+        relative to its mount, intrinsic ZYX, each in (-pi, pi]) for k TCP poses: positions
+        (k, 3) [m], rotation matrices (k, 3, 3). (`_ramp` computes the same for a period's
+        pieces.)"""
+        wrist = positions - rotations @ self._tcp_local
+        rel = rotations @ self._mount_matrix.T
+        yaw = np.arctan2(rel[:, 1, 0], rel[:, 0, 0])
+        pitch = np.arctan2(-rel[:, 2, 0], np.hypot(rel[:, 0, 0], rel[:, 1, 0]))
+        roll = np.arctan2(rel[:, 2, 1], rel[:, 2, 2])
+        return np.column_stack([wrist, yaw, pitch, roll])
 
     def _unwrapped(self, q: FloatArray) -> FloatArray:
-        """Joint targets with angles unwrapped next to the current ones (no 2 pi spins)."""
-        q = q.copy()
-        q[3:] = self._target[3:] + (q[3:] - self._target[3:] + np.pi) % (2 * np.pi) - np.pi
+        """Joint targets (k, 6) in sequence after the current ones, angles unwrapped (no 2 pi
+        spins between consecutive targets); `q` is changed in place and returned."""
+        angles = q[:, 3:]
+        turns = np.empty_like(angles)
+        turns[0] = angles[0] - self._target[3:]
+        np.subtract(angles[1:], angles[:-1], out=turns[1:])
+        turns = (turns + np.pi) % (2 * np.pi) - np.pi
+        angles[:] = self._target[3:] + turns.cumsum(axis=0)
         return q
 
-    def _apply_setpoint(self, pose: Pose) -> None:
-        self._target = self._unwrapped(self._joint_targets(pose))
+    def _set_arm_ctrl(self, q: FloatArray) -> None:
+        self.data.ctrl[self._arm_ctrl] = q
+
+    def _apply_setpoint_matrix(self, position: FloatArray, rotation: FloatArray) -> None:
+        self._target = self._unwrapped(self._joint_targets(position[None], rotation[None]))[0]
         self._set_arm_ctrl(self._target)
+
+    def _ramp(
+        self, start: FloatArray, shift: FloatArray, start_rotation: FloatArray, turn: FloatArray
+    ) -> None:
+        """The period's pieces as joint targets, all at once; one `mj_step` call per piece.
+
+        Piece i's rotation is exp(f_i turn) R0 = (I + sin(f_i a) K + (1 - cos(f_i a)) K^2) R0
+        (Rodrigues; a = |turn|, K the cross-product matrix of its axis): the entries the joint
+        targets read (five of R M^T for the angles, M the mount, and R t for the wrist, t the
+        tool point on the hand) are one product [1, sin, 1 - cos] (pieces, 3) by their I, K,
+        K^2 terms (3, 8)."""
+        angle = math.sqrt(float(turn @ turn))
+        relative = start_rotation @ self._mount_matrix.T
+        tool = start_rotation @ self._tcp_local
+        terms = self._ramp_terms
+        terms[0, :5], terms[0, 5:] = relative[_EULER_ENTRIES], tool
+        coefficients = self._ramp_coefficients
+        if angle > 1e-12:
+            k = _cross_matrix(turn / angle)
+            k_relative, k_tool = k @ relative, k @ tool
+            terms[1, :5], terms[1, 5:] = k_relative[_EULER_ENTRIES], k_tool
+            terms[2, :5], terms[2, 5:] = (k @ k_relative)[_EULER_ENTRIES], k @ k_tool
+            coefficients[:, 1] = np.sin(RAMP_FRACTIONS * angle)
+            coefficients[:, 2] = 1.0 - np.cos(RAMP_FRACTIONS * angle)
+        else:
+            coefficients[:, 1:] = 0.0
+        e = coefficients @ terms  # per piece: r10, r00, r20, r21, r22 of R M^T, then R t
+        q = np.empty((RAMP_CHUNKS, 6))
+        q[:, :3] = start + RAMP_FRACTIONS[:, None] * shift - e[:, 5:]
+        q[:, 3] = np.arctan2(e[:, 0], e[:, 1])
+        q[:, 4] = np.arctan2(-e[:, 2], np.hypot(e[:, 1], e[:, 0]))
+        q[:, 5] = np.arctan2(e[:, 3], e[:, 4])
+        targets = self._unwrapped(q)
+        ctrl, arm = self.data.ctrl, self._arm_ctrl
+        for target, n in zip(targets, self._piece_steps.tolist(), strict=True):
+            ctrl[arm] = target
+            self._step(n)
+        self._target = targets[-1]
 
     def _rest_at_measured(self) -> None:
         self._target = self.data.qpos[self._arm_qpos].copy()
         self._set_arm_ctrl(self._target)
 
-    def commanded_pose(self) -> Pose:
+    def _setpoint(self) -> tuple[FloatArray, FloatArray]:
         q = self._target
-        orientation = Rotation.from_euler("ZYX", q[3:]) * self._mount
-        return Pose(q[:3] + orientation.apply(self._tcp_local), orientation)
+        rotation = _zyx_matrix(q[3], q[4], q[5]) @ self._mount_matrix
+        return q[:3] + rotation @ self._tcp_local, rotation
 
     @property
     def translational_stiffness(self) -> float:
@@ -167,7 +257,7 @@ class ManipulationSim(Embodiment):
         the fingers at `finger_angle` [rad] (`set_fingers`), then settle for `settle_time`."""
         d = self.data
         mujoco.mj_resetData(self.model, d)
-        q = self._joint_targets(pose)
+        q = self._joint_targets(pose.position[None], pose.orientation.as_matrix()[None])[0]
         d.qpos[self._arm_qpos] = q
         self._target = q
         self._set_arm_ctrl(q)
@@ -179,8 +269,32 @@ class ManipulationSim(Embodiment):
 
     def _place(self, pose: Pose) -> None:
         d = self.data
-        q = self._joint_targets(pose)
+        q = self._joint_targets(pose.position[None], pose.orientation.as_matrix()[None])[0]
         d.qpos[self._arm_qpos] = q
         self._target = q
         d.qpos[self._finger_qpos] = [self.task.finger_angle, -self.task.finger_angle]
         d.ctrl[self._finger_act] = [self.task.finger_angle, -self.task.finger_angle]
+
+
+#: The entries of R M^T the joint angles read: r10, r00 (yaw), r20 (pitch), r21, r22 (roll)
+_EULER_ENTRIES = (np.array([1, 0, 2, 2, 2]), np.array([0, 0, 0, 1, 2]))
+
+
+def _cross_matrix(v: FloatArray) -> FloatArray:
+    """(3, 3) K with K u = v x u."""
+    x, y, z = v.tolist()
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def _zyx_matrix(yaw: float, pitch: float, roll: float) -> FloatArray:
+    """(3, 3) the rotation of intrinsic ZYX angles [rad]: Rz(yaw) Ry(pitch) Rx(roll)."""
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cr, sr = math.cos(roll), math.sin(roll)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
