@@ -63,7 +63,22 @@ def test_preflight_skips_only_what_cannot_run(monkeypatch: pytest.MonkeyPatch) -
         assert ("heatmap" in section_needs(cfg)) is not quick
     monkeypatch.setitem(sys.modules, "dm_control", None)
     for quick in (True, False):
-        assert set(preflight(ex.BenchConfig.for_mode(quick))) == {"embodiment"}
+        # the full bench's end-to-end section runs the Jaco too (the quick one: the hook hand)
+        expected = {"embodiment"} if quick else {"embodiment", "end_to_end"}
+        assert set(preflight(ex.BenchConfig.for_mode(quick))) == expected
+
+
+def test_the_end_to_end_section_without_offscreen_rendering_is_skipped_with_why(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from constraint_aware.bench import experiments as ex
+    from constraint_aware.bench.run import preflight
+    from constraint_aware.sim import camera
+
+    monkeypatch.setattr(camera, "depth_rendering_available", lambda: False)
+    skipped = preflight(ex.BenchConfig.for_mode(True))
+    assert set(skipped) == {"end_to_end"}
+    assert "OpenGL" in skipped["end_to_end"] and "EGL" in skipped["end_to_end"]
 
 
 def test_an_explicit_robot_without_its_models_is_refused_before_anything_runs(

@@ -309,7 +309,9 @@ def test_lfo_json_is_a_path(tmp_path: Path) -> None:
 def test_lfo_prints_every_note_of_its_json(tmp_path: Path) -> None:
     """The assumptions and disagreements are in the human-readable output, not only in --json."""
     demo = Path(__file__).resolve().parents[1] / "examples" / "drawer_path.csv"
-    out = cap("lfo", str(demo), "--execute", "--json", str(tmp_path / "s.json"))
+    out = cap(
+        "lfo", str(demo), "--execute", "--start", "at-grasp", "--json", str(tmp_path / "s.json")
+    )
     assert out.returncode == 0, out.stderr
     data = json.loads((tmp_path / "s.json").read_text())
     notes = data["skill"]["warnings"] + data["execution"]["notes"]

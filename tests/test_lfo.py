@@ -269,7 +269,7 @@ def test_missing_file_names_it(tmp_path: Path) -> None:
 def test_cap_lfo_execute_examples(name: str) -> None:
     out = subprocess.run(
         [sys.executable, "-m", "constraint_aware.cli", "lfo", str(ROOT / "examples" / name),
-         "--execute", "--json", "-"],
+         "--execute", "--start", "at-grasp", "--json", "-"],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert out.returncode == 0, out.stdout + out.stderr
@@ -335,7 +335,7 @@ def test_cap_lfo_execute_robot_flag() -> None:
     demo = str(ROOT / "examples" / "door_demo.json")
     out = subprocess.run(
         [sys.executable, "-m", "constraint_aware.cli", "lfo", demo, "--execute",
-         "--robot", "jaco", "--json", "-"],
+         "--start", "at-grasp", "--robot", "jaco", "--json", "-"],
         capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert out.returncode in (0, 1), out.stderr  # 1: the run stopped (a guard), still recorded

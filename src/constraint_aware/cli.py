@@ -613,6 +613,7 @@ def cmd_view(args: argparse.Namespace) -> int:
 def _lfo_parser(p: argparse.ArgumentParser) -> None:
     from constraint_aware.control.controllers import CONTROLLERS
     from constraint_aware.lfo.demo import GRASP_TYPES
+    from constraint_aware.recognizer import METHODS
 
     p.add_argument("demo", help="demonstration .json (cap-demo/1) or a t,x,y,z .csv")
     p.add_argument(
@@ -635,6 +636,22 @@ def _lfo_parser(p: argparse.ArgumentParser) -> None:
     _add_profile_flags(run)
     _add_policy(run)
     run.add_argument("--record", metavar="PATH", help="the execution's run record (.json)")
+    run.add_argument(
+        "--start",
+        choices=LFO_STARTS,
+        help="home (default): see the object, reach, grasp, manipulate, release and return "
+        "home; at-grasp: the hand placed on the simulated handle (experiments)",
+    )
+    run.add_argument(
+        "--recognizer",
+        choices=METHODS,
+        help=f"the contact-points recognizer with --start home (default: {LFO_RECOGNIZER})",
+    )
+    run.add_argument(
+        "--video",
+        metavar="PATH",
+        help="render the execution offscreen: .gif (Pillow) or .mp4 (the 'video' extra)",
+    )
     p.set_defaults(func=cmd_lfo)
 
 
@@ -647,8 +664,14 @@ LFO_EXECUTION_FLAGS = (
     ("--record", "record"),
     ("--profile", "profile"),
     ("--strict-inputs", "strict_inputs"),
+    ("--start", "start"),
+    ("--recognizer", "recognizer"),
+    ("--video", "video"),
 )
 LFO_CONTROLLER = "policy"
+LFO_STARTS = ("home", "at-grasp")
+LFO_START = "home"
+LFO_RECOGNIZER = "cnn"
 
 
 def cmd_lfo(args: argparse.Namespace) -> int:
@@ -669,6 +692,20 @@ def cmd_lfo(args: argparse.Namespace) -> int:
     args.controller = args.controller or LFO_CONTROLLER
     args.seed = 0 if args.seed is None else args.seed
     args.robot = args.robot or DEFAULT_ROBOT
+    args.start = args.start or LFO_START
+    if args.recognizer is not None and args.start != "home":
+        raise InvalidInputError(
+            f"--recognizer with --start {args.start}: only the sequence from home sees the object"
+        )
+    if args.video is not None and args.start != "home":
+        raise InvalidInputError(
+            f"--video with --start {args.start}: the video shows the sequence from home"
+        )
+    args.recognizer = args.recognizer or LFO_RECOGNIZER
+    if args.video:
+        from constraint_aware.sim.render import check_video_path
+
+        check_video_path(args.video)
     out_console = err_console if "-" in (args.json, args.record) else console
     policy = None
     if args.execute:
@@ -688,6 +725,8 @@ def cmd_lfo(args: argparse.Namespace) -> int:
     skill = infer_skill(demo, grasp_override=args.grasp)
     out: dict[str, Any] = {"demo": str(args.demo), "skill": skill.to_dict()}
     _print_skill(skill, out_console)
+    if args.execute and args.start == "home":
+        return _lfo_sequence(args, skill, policy, out, out_console)
     if args.execute:
         from constraint_aware.lfo.execute import execute
 
@@ -719,6 +758,88 @@ def cmd_lfo(args: argparse.Namespace) -> int:
     if args.execute and not out["execution"]["success"]:
         return EXIT_FAILED
     return EXIT_OK
+
+
+def _lfo_sequence(
+    args: argparse.Namespace, skill: Any, policy: Any, out: dict[str, Any], out_console: Console
+) -> int:
+    """`cap lfo --execute` from home: the whole sequence on the object the demonstration
+    shows, its record (--record), video (--video) and summary (--json)."""
+    from constraint_aware.lfo.execute import execute_from_home
+
+    frames: list[Any] = []
+    on_period = _video_recorder(frames) if args.video else None
+    try:
+        result, info = execute_from_home(
+            skill, controller=args.controller, seed=args.seed, policy=policy, robot=args.robot,
+            recognizer=args.recognizer, on_period=on_period,
+            profile=_load_profile(args.profile), strict_inputs=bool(args.strict_inputs),
+        )  # fmt: skip
+    except BaseException as exc:  # write what there is, then report
+        partial = getattr(exc, "sequence_record", None)
+        if partial is not None and args.record:
+            write_json(partial.to_dict(), args.record)
+        _save_frames(args, frames)
+        if not isinstance(exc, Exception):
+            raise
+        if isinstance(exc, CapError):
+            raise
+        print_error(f"the execution raised {type(exc).__name__}: {exc}")
+        return EXIT_FAILED
+    record = result.record
+    out["execution"] = {**info, "sequence": record.to_dict()}
+    for phase in record.phases:
+        colour = {"ok": "green", "not_run": "dim"}.get(phase.outcome, "red")
+        out_console.print(
+            Text.assemble(
+                f"{phase.name:<11}", (phase.outcome, colour),
+                f"  {phase.periods} periods, peak |F| {phase.peak_force:.1f} N"
+                + (f" ({phase.reason})" if phase.reason else ""),
+            ),
+            soft_wrap=True,
+        )  # fmt: skip
+    verdict = "done" if record.success else f"stopped in {record.failed_phase}"
+    out_console.print(
+        Text.assemble(
+            f"executed on {info['task']} by {info['robot']} from home: ",
+            (verdict, "green" if record.success else "red"),
+        )
+    )
+    _print_notes(info["notes"], out_console)
+    if args.record:
+        write_json(record.to_dict(), args.record)
+    _save_frames(args, frames)
+    if args.json:
+        write_json(out, args.json)
+    return EXIT_OK if record.success else EXIT_FAILED
+
+
+def _video_recorder(frames: list[Any]) -> Callable[[Any], None]:
+    """An on_period(sim) that renders one frame per control period into `frames`."""
+    from constraint_aware.sim.render import SceneRenderer
+
+    renderer: list[SceneRenderer] = []
+
+    def on_period(sim: Any) -> None:
+        if not renderer:
+            renderer.append(
+                SceneRenderer(
+                    sim.model, width=480, height=360, lookat=sim.model.stat.center, distance=1.8
+                )
+            )
+        frames.append(renderer[0].frame(sim.data))
+
+    return on_period
+
+
+def _save_frames(args: argparse.Namespace, frames: list[Any]) -> None:
+    if args.video and frames:
+        from constraint_aware.sim.render import save_video
+
+        try:
+            save_video(frames, args.video, fps=10)
+        except OSError as exc:
+            raise CapError(f"cannot write {args.video}: {exc.strerror or exc}") from exc
 
 
 def _print_skill(skill: Any, out: Console) -> None:
@@ -774,6 +895,104 @@ def _print_notes(notes: Sequence[str], out: Console) -> None:
     holds as `skill.warnings` and `execution.notes`, in plain text."""
     for note in notes:
         out.print(Text.assemble(("note: ", "yellow"), note), soft_wrap=True)
+
+
+# --- cap train-grasp --------------------------------------------------------------------------
+def _train_grasp_parser(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scenes", type=int, default=200, help="training scenes per object kind")
+    p.add_argument(
+        "--validation-scenes", type=int, default=30, help="validation scenes per object kind"
+    )
+    p.add_argument("--crops", type=int, default=4, help="crops per camera view (demo offsets)")
+    p.add_argument("--epochs", type=int, default=20, help="training epochs")
+    p.add_argument("--seed", type=int, default=0, help="seeds the scenes and the training")
+    p.add_argument("--data", metavar="NPZ", help="reuse a training set (grasp_train.npz)")
+    p.add_argument("--out", help="output directory (default runs/train-grasp-seedN)")
+    p.add_argument("--ship", action="store_true", help="also overwrite the packaged weights")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_json(p, "the scores per method and kind")
+    p.set_defaults(func=cmd_train_grasp)
+
+
+def cmd_train_grasp(args: argparse.Namespace) -> int:
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
+    counts = {
+        "--scenes": args.scenes,
+        "--validation-scenes": args.validation_scenes,
+        "--crops": args.crops,
+        "--epochs": args.epochs,
+    }
+    for flag, value in counts.items():
+        if value < 1:
+            raise InvalidInputError(f"{flag} {value}: must be >= 1")
+    if args.seed < 0:
+        raise InvalidInputError(f"--seed {args.seed}: must be >= 0")
+    if args.data and not Path(args.data).is_file():
+        raise InvalidInputError(f"--data {args.data!r}: no such file")
+    # torch loads with these, after the input is checked
+    require_extra("torch", "train", "cap train-grasp")
+    from constraint_aware.lfo.grasp_training import train_grasp
+    from constraint_aware.recognizer import shipped_recognizer_path
+    from constraint_aware.training.grasp import GraspTrainConfig
+
+    config = GraspTrainConfig(epochs=args.epochs, seed=args.seed)
+    out = Path(args.out or f"runs/train-grasp-seed{args.seed}")
+    out_console = human(args)
+    with Progress(
+        TextColumn("[bold]{task.description}[/]"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TextColumn("{task.fields[status]}"),
+        TimeElapsedColumn(),
+        console=out_console,
+        disable=args.quiet,
+    ) as progress:
+        bars: dict[str, Any] = {}
+
+        def on_scene(stage: str, done: int, total: int) -> None:
+            if stage not in bars:
+                bars[stage] = progress.add_task(f"{stage} scenes", total=total, status="")
+            progress.update(bars[stage], completed=done)
+
+        epochs = progress.add_task("training epochs", total=args.epochs, status="")
+
+        def on_epoch(epoch: int, row: dict[str, float]) -> None:
+            status = f"median {row['val_median_mm']:.1f} mm, p95 {row['val_p95_mm']:.1f} mm"
+            progress.update(epochs, completed=epoch, status=status)
+
+        result = train_grasp(
+            out, args.scenes, args.validation_scenes, args.crops, args.seed, config,
+            args.data, on_scene, on_epoch,
+        )  # fmt: skip
+    table = Table(title="contact-point recognizers on the validation scenes")
+    for col in ("method", "kind", "median [mm]", "p95 [mm]", "approach p95 [deg]"):
+        table.add_column(col, justify="left" if col in ("method", "kind") else "right")
+
+    def cell(x: float | None) -> str:
+        return "no answer" if x is None else f"{x:.1f}"
+
+    for method, rows in result.scores.items():
+        for kind, r in rows.items():
+            table.add_row(
+                method, kind, cell(r["median_mm"]), cell(r["p95_mm"]),
+                cell(r["approach_p95_deg"]),
+            )  # fmt: skip
+    out_console.print(table)
+    if args.ship:
+        result.recognizer.save(shipped_recognizer_path())
+        out_console.print(Text(f"shipped recognizer written to {shipped_recognizer_path()}"))
+    times = result.times
+    out_console.print(
+        Text(
+            f"data {times['data_s']:.0f} s, training {times['training_s']:.0f} s; "
+            f"recognizer in {result.path}"
+        )
+    )
+    if args.json:
+        write_json({"out": out, "scores": result.scores, "times": result.times}, args.json)
+    return EXIT_OK
 
 
 # --- cap bench --------------------------------------------------------------------------------
@@ -1057,6 +1276,10 @@ COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
     "run": ("run a controller on a simulated task", _run_parser),
     "lfo": ("skill parameters from a demonstration (and run them)", _lfo_parser),
     "train": ("train the policy with PPO (needs the 'train' extra)", _train_parser),
+    "train-grasp": (
+        "train the contact-points recognizer on rendered scenes (needs the 'train' extra)",
+        _train_grasp_parser,
+    ),
     "eval": ("evaluate a policy beside the reference controllers", _eval_parser),
     "view": ("open MuJoCo's interactive viewer on a task", _view_parser),
     "check-sensor": (

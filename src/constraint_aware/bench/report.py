@@ -8,6 +8,7 @@ from typing import Any
 
 from constraint_aware.bench.ablation import FULL, AblationCell, AblationSection, beyond_noise
 from constraint_aware.bench.analysis import CellSummary, PolicySection
+from constraint_aware.bench.endtoend import report_lines as end_to_end_report_lines
 from constraint_aware.bench.placement import report_lines as placement_report_lines
 
 
@@ -230,6 +231,8 @@ def write_report(out: Path, results: dict[str, Any], figures: dict[str, str]) ->
         lines += _embodiment_section(results["embodiment"], results["learning"]["policy"])
     if "placement" in results:
         lines.extend(placement_report_lines(results["placement"]))
+    if "end_to_end" in results:
+        lines.extend(end_to_end_report_lines(results["end_to_end"]))
     if results.get("worst_cases"):
         add("## Worst cases of the constraint-aware policy\n")
         add(

@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from constraint_aware.bench import endtoend, placement
 from constraint_aware.bench import experiments as ex
-from constraint_aware.bench import placement
 from constraint_aware.bench.ablation import ablation_section
 from constraint_aware.bench.analysis import policy_section
 from constraint_aware.bench.embodiment import ROBOTS as EMBODIMENT_ROBOTS
@@ -56,6 +56,7 @@ SECTIONS: dict[str, str] = {
     "headline": "the randomized suite",
     "embodiment": "embodiments",
     "placement": "placement",
+    "end_to_end": "end-to-end",
     "heatmap": "the offset map",
     "sensitivity": "sensitivity",
     "policy_section": "policies",
@@ -70,9 +71,12 @@ class Need:
     what: str  # what is needed, in words ("dm-control's Kinova Jaco models")
     extra: str  # the optional-dependencies extra of pyproject.toml that installs it
     available: Callable[[], bool]  # whether it is installed here (cheap: no model is built)
+    how: str = ""  # how to get it when no extra installs it (a system library)
 
     def install(self) -> str:
         """The command that installs it, as one phrase."""
+        if self.how:
+            return self.how
         return (
             f"pip install 'constraint-aware[{self.extra}]' "
             f"(in a source checkout: pip install -e '.[{self.extra}]')"
@@ -95,6 +99,37 @@ ROBOT_NEEDS: dict[str, Need] = {
 }
 
 
+def _depth_rendering() -> bool:
+    from constraint_aware.sim.camera import depth_rendering_available
+
+    return depth_rendering_available()
+
+
+#: The end-to-end section's head camera renders depth images offscreen.
+DEPTH_RENDERING = Need(
+    "offscreen OpenGL rendering for the depth camera",
+    "",
+    _depth_rendering,
+    how="install EGL (libegl1) or OSMesa, or run with a display; MUJOCO_GL selects the backend",
+)
+
+
+def _mink_installed() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("mink") is not None
+
+
+#: The end-to-end section's Jaco plans its paths with mink.
+JACO_PATHS = Need("mink, for the Jaco's paths", BENCH_EXTRA, _mink_installed)
+
+
+def _end_to_end_needs(quick: bool) -> tuple[Need, ...]:
+    robots = endtoend.BENCH_ROBOTS[quick]
+    paths = (JACO_PATHS,) if "jaco" in robots else ()
+    return (DEPTH_RENDERING, *_robot_needs(*robots), *paths)
+
+
 def _robot_needs(*robots: str) -> tuple[Need, ...]:
     names = dict.fromkeys(parse_robot(r).name for r in robots)
     return tuple(ROBOT_NEEDS[n] for n in names if n in ROBOT_NEEDS)
@@ -110,6 +145,7 @@ def section_needs(cfg: ex.BenchConfig) -> dict[str, tuple[Need, ...]]:
         "headline": on_robot,
         "embodiment": _robot_needs(*EMBODIMENT_ROBOTS),
         "placement": (),
+        "end_to_end": _end_to_end_needs(cfg.quick),
         "heatmap": on_robot,
         "sensitivity": on_robot,
         "policy_section": (),
@@ -373,6 +409,8 @@ def _run_bench(
         results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds, policy).to_dict()
     all_runs = list(suite_runs)
     results["placement"] = placement.bench_section(quick, policy)
+    if "end_to_end" not in skipped:
+        results["end_to_end"] = endtoend.bench_section(quick, policy)
     if not quick:
         heatmap, hm_runs = ex.offset_heatmap(cfg, policy)
         heatmap["full_success_halfwidth_deg"] = _full_success_halfwidth(heatmap)

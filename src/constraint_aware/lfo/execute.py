@@ -1,6 +1,11 @@
 """Run a demonstration's skill on a simulated object, with the demonstration's estimates
 (workplane, initial direction, radius, constraint type, grasp, goal) in charge.
 
+`execute_from_home` runs the whole execution sequence (lfo/sequence.py): the robot starts at
+its home, sees the object, reaches, grasps, manipulates, releases and returns home; `cap lfo
+--execute` runs it. `execute` starts with the hand placed at the simulated handle's grasp
+(`cap lfo --execute --start at-grasp`), for experiments on the manipulation alone.
+
 By default the object itself is built from the demonstration (lfo/scene.py): placed, oriented
 and sized where the hand moved. `task=` runs on a given object instead (the placement
 benchmark's ground truth), still with the estimates in charge and the demonstrated goal.
@@ -9,52 +14,107 @@ benchmark's ground truth), still with the estimates in charge and the demonstrat
 from __future__ import annotations
 
 import dataclasses
-import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from constraint_aware.control.controllers import driving_policy, make_controller
+from constraint_aware.control.controllers import driving_policy
 from constraint_aware.control.executor import Executor
-from constraint_aware.control.executor_config import GoalConfig
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import RunRecord
-from constraint_aware.control.simulate import RunSpec, executor_config, simulated_robot
+from constraint_aware.control.simulate import simulated_robot
 from constraint_aware.errors import CapError
 from constraint_aware.geometry import FloatArray, angle_deg
 from constraint_aware.lfo.infer import SkillParameters
+from constraint_aware.lfo.manipulation import (
+    SENSOR_NOISE,
+    goal_label,
+    manipulation_setup,
+)
 from constraint_aware.lfo.plausibility import check_certainty
 from constraint_aware.lfo.scene import scene_from_skill, with_goal
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.sim.embodiment import DEFAULT_ROBOT, parse_robot
 from constraint_aware.sim.tasks import TaskConfig
 
-SENSOR_NOISE = RunSpec.sensor_noise  # [N] std of the simulated force reading, as `cap run`
+
+def _check_skill(skill: SkillParameters) -> None:
+    if skill.constraint_type not in ("prismatic", "revolute"):
+        raise CapError(
+            f"no simulated object for constraint {skill.constraint_type!r}: the demonstration "
+            "did not decide prismatic or revolute"
+        )
+    if skill.goal is None or skill.goal <= 0:
+        raise CapError(
+            f"the demonstrated motion has no positive travel or angle (goal {skill.goal}): "
+            "nothing to execute"
+        )
 
 
-def robot_goal(skill: SkillParameters) -> tuple[float | None, float | None]:
-    """The executor's stop from the demonstration, measured by the robot on its own poses:
-    prismatic: the demonstrated travel (goal_travel); revolute with a fixed-orientation grasp:
-    the demonstrated angle (goal_rotation: the hand turns with the object); other revolute
-    grasps let the hand turn about the handle (a hooked bar), so the hand's orientation does not
-    measure the hinge's angle, but its distance from the start does: the chord
-    2 r sin(angle / 2) of the fitted radius (monotonic up to 180 deg; beyond, no robot-side
-    goal and the simulated object's progress decides). The simulated task's success criterion
-    is the same goal, measured on the object. Returns (goal_travel [m], goal_rotation [rad])."""
-    goal = float(skill.goal or 0.0)
-    if skill.constraint_type == "prismatic":
-        return goal, None
-    if skill.fixed_orientation:
-        return None, goal
-    if skill.radius is not None and goal < math.pi:
-        return 2.0 * skill.radius * math.sin(goal / 2.0), None
-    return None, None
+def execute_from_home(
+    skill: SkillParameters,
+    controller: str = "policy",
+    seed: int = 0,
+    task: TaskConfig | None = None,
+    policy: ConstraintAwarePolicy | None = None,
+    sensor_noise: float = SENSOR_NOISE,
+    robot: str = DEFAULT_ROBOT,
+    recognizer: str = "cnn",
+    on_phase: Callable[[str, Any], None] | None = None,
+    on_period: Callable[[Any], None] | None = None,
+    profile: RobotProfile | None = None,
+    strict_inputs: bool = False,
+) -> tuple[Any, dict[str, Any]]:
+    """The execution sequence (lfo/sequence.py) from the robot's home on the simulated object
+    (built from the demonstration unless `task` is given); returns the `SimulatedSequence`
+    and what was built. recognizer: "cnn" (the shipped weights) or "geometric". Raises as
+    `execute` does before anything moves; an exception during the sequence carries its
+    record as `sequence_record`. profile, strict_inputs: as `execute`, for the manipulation."""
+    from constraint_aware.lfo.sequence import SequenceConfig, run_in_simulation
+    from constraint_aware.recognizer import make_recognizer
 
-
-def goal_label(constraint: str, goal: float) -> dict[str, Any]:
-    if constraint == "revolute":
-        return {"goal_rotation_deg": math.degrees(goal), "goal_source": "demonstration"}
-    return {"goal_travel_m": goal, "goal_source": "demonstration"}
+    parse_robot(robot)
+    _check_skill(skill)
+    notes: list[str] = []
+    if task is None:
+        scene = scene_from_skill(skill)
+        task, kind, notes = scene.task, scene.kind, list(scene.notes)
+    else:
+        kind = task.name
+        task = with_goal(task, float(skill.goal or 0.0))
+    check_certainty(
+        skill.constraint_type,
+        skill.uncertainty.get("normal_std_deg"),
+        skill.uncertainty.get("path_length_m", 0.0),
+        task.slip_limit,
+    )
+    found = make_recognizer(recognizer)
+    result = run_in_simulation(
+        skill, task, robot, controller, policy, seed, sensor_noise, found,
+        SequenceConfig(recognizer=recognizer, profile=profile, strict_inputs=strict_inputs),
+        on_phase, on_period,
+    )  # fmt: skip
+    record = result.record
+    # scored afterwards against the simulated object (the sequence never read it)
+    sim = result.sim
+    d0 = np.asarray(skill.initial_direction, dtype=float)
+    info = {
+        "task": task.name,
+        "kind": kind,
+        "robot": robot,
+        "start": "home",
+        "notes": notes,
+        "object": dataclasses.asdict(task.object),
+        **goal_label(skill.constraint_type, float(skill.goal or 0.0)),
+        "success": record.success,
+        "failed_phase": record.failed_phase,
+        "reason": record.reason,
+        "progress": float(sim.progress()),
+        "peak_force_N": record.peak_force,
+        "initial_direction_error_deg": float(angle_deg(d0, task.object.opening_direction)),
+    }
+    return result, info
 
 
 def execute(
@@ -80,16 +140,8 @@ def execute(
     unknown or the estimates are too uncertain for the grasp (lfo/plausibility.py).
     """
     parse_robot(robot)
-    if skill.constraint_type not in ("prismatic", "revolute"):
-        raise CapError(
-            f"no simulated object for constraint {skill.constraint_type!r}: the demonstration "
-            "did not decide prismatic or revolute"
-        )
-    if skill.goal is None or skill.goal <= 0:
-        raise CapError(
-            f"the demonstrated motion has no positive travel or angle (goal {skill.goal}): "
-            "nothing to execute"
-        )
+    _check_skill(skill)
+    assert skill.goal is not None  # _check_skill
     notes: list[str] = []
     if task is None:
         scene = scene_from_skill(skill)
@@ -105,30 +157,8 @@ def execute(
     )
     sim = simulated_robot(robot, task, np.random.default_rng(seed + 7919), sensor_noise)
     sim.reset()
-    base = executor_config(task, skill.fixed_orientation)
-    goal_travel, goal_rotation = robot_goal(skill)
-    radius = skill.radius if skill.constraint_type == "revolute" else None
-    cfg = dataclasses.replace(
-        base,
-        constraint_type=skill.constraint_type,  # type: ignore[arg-type]
-        workplane_normal=(
-            float(skill.workplane_normal[0]),
-            float(skill.workplane_normal[1]),
-            float(skill.workplane_normal[2]),
-        ),
-        torque_policy=dataclasses.replace(
-            base.torque_policy,
-            enabled=bool(skill.fixed_orientation) and skill.constraint_type == "revolute",
-        ),
-        rotation_radius=radius,
-        goal=GoalConfig(travel=goal_travel, rotation=goal_rotation),
-        strict_inputs=strict_inputs,
-    )
-    rate = None
-    if cfg.constraint_type == "revolute" and radius:
-        rate = cfg.step_length / sim.control_period / radius  # w_d = v_d / r
-    normal = np.asarray(cfg.workplane_normal, dtype=float)
-    ctrl = make_controller(controller, policy, rate, normal)
+    cfg, ctrl = manipulation_setup(skill, task, sim.control_period, controller, policy)
+    cfg = dataclasses.replace(cfg, strict_inputs=strict_inputs)
     d0 = np.asarray(skill.initial_direction, dtype=float)
     truth_d = sim.admissible_direction()
     label = {

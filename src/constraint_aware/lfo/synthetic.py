@@ -210,16 +210,25 @@ def demo_of_object(
     words: tuple[str, str] | None = None,
     closing: bool = False,
     orientation: bool = True,
+    point_offset: FloatArray | None = None,
 ) -> Demonstration:
     """A demonstration of operating `task`'s object from joint position 0 to `goal`: the
-    handle's path as a tracker reports it, with the hand's orientation (its mount on the
-    handle, turning with a hinge) unless `orientation` is False. `closing` plays it backwards
-    (from `goal` back to 0). Words: the kind's (KIND_INSTRUCTIONS) unless given."""
+    tracked point's path as a tracker reports it, with the hand's orientation (its mount on
+    the handle, turning with a hinge) unless `orientation` is False. `closing` plays it
+    backwards (from `goal` back to 0). Words: the kind's (KIND_INSTRUCTIONS) unless given.
+
+    Args:
+        point_offset: (3,) [m] where the tracked point sits relative to the handle's grasp
+            centre at joint position 0, world frame; it moves rigidly with the hand (turns
+            with a hinge). None: the tracker follows the grasp centre itself.
+    """
     from scipy.spatial.transform import Rotation
 
     tr = tracking or TrackingNoise()
     o = task.object
     handle = o.handle_position
+    if point_offset is not None:
+        handle = handle + np.asarray(point_offset, dtype=float)
     path_length = goal * (o.radius if o.joint_type == "revolute" else 1.0)
     duration = path_length / HAND_SPEED
     n = int(duration * rate) + 1
@@ -245,6 +254,23 @@ def demo_of_object(
         x, y, z, w = rots[idx].as_quat().T
         quats = np.stack([w, x, y, z], axis=1)
     return Demonstration(instruction, name, stamps, noisy, quats)
+
+
+@dataclass(frozen=True)
+class HandOffset:
+    """How far a human's tracked hand point lies from the robot's contact point: a constant
+    offset of uniformly drawn length up to `max_offset` [m] in a uniformly drawn direction,
+    plus Gaussian `jitter` [m] std per axis (the tracker's idea of where the hand is: wrist,
+    knuckles or the palm's centre)."""
+
+    max_offset: float = 0.05  # [m]
+    jitter: float = 0.01  # [m] per axis
+
+    def draw(self, rng: np.random.Generator) -> FloatArray:
+        """(3,) [m] one demonstration's offset, world frame."""
+        direction = random_unit(rng, 1)[0]
+        offset = direction * rng.uniform(0.0, self.max_offset)
+        return np.asarray(offset + rng.normal(0.0, self.jitter, 3))
 
 
 def _t(v: FloatArray) -> tuple[float, float, float]:

@@ -301,7 +301,10 @@ class JacoSim(Embodiment):
         osc: OscConfig | None = None,
         control_period: float = CONTROL_PERIOD,
         base: FloatArray | None = None,
+        model: mujoco.MjModel | None = None,
     ) -> None:
+        """model: the compiled scene (`build_spec(task, base)` with more composed in, e.g. a
+        camera); None: built here."""
         if task.object.handle not in JACO_GRASPS:
             raise InvalidInputError(
                 f"handle {task.object.handle!r}; the Jaco hand grasps: {sorted(JACO_GRASPS)}"
@@ -311,7 +314,7 @@ class JacoSim(Embodiment):
         self.control_period_s = control_period
         self.grasp_kind = JACO_GRASPS[task.object.handle]
         self.base = arm_base(task) if base is None else np.asarray(base, dtype=float)
-        self.model = build_model(task, self.base)
+        self.model = build_model(task, self.base) if model is None else model
         self.data = mujoco.MjData(self.model)
         m = self.model
         self._arm_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in ARM_JOINTS])
@@ -553,6 +556,50 @@ class JacoSim(Embodiment):
             pos = pos - mount.apply([0.0, 0.0, reach])
         return Pose(pos, mount)
 
+    def grasp_pose_at(self, point: FloatArray, orientation: Rotation, handle: str) -> Pose:
+        """The TCP pose that holds a `handle` shape (`JACO_GRASPS`) whose grasp centre is
+        `point` (3,) [m] with the hand at `orientation`, as `grasp_pose` does for the task's
+        own handle (the hand's extent is measured on a scratch copy of the state)."""
+        kind = JACO_GRASPS[handle]
+        pos = np.array(point, dtype=float)
+        if kind.contact != "centre":
+            episode = self.data
+            self.data = mujoco.MjData(self.model)
+            try:
+                reach = self._hand_extent(kind.finger_start, palm_only=kind.contact == "palm")
+            finally:
+                self.data = episode
+            pos = pos - orientation.apply([0.0, 0.0, reach])
+        return Pose(pos, orientation)
+
+    def set_fingers(self, angle: float) -> None:
+        """The three finger servos' target [rad] (0 open, 1.5 closed)."""
+        self.data.ctrl[self._finger_act] = angle
+
+    def set_posture(self, q: FloatArray) -> None:
+        """(6,) [rad] the null-space posture the controller holds the arm near."""
+        self._set_posture(np.asarray(q, dtype=float))
+
+    def joint_positions(self) -> FloatArray:
+        """(6,) [rad] the arm's joint angles."""
+        return np.asarray(self.data.qpos[self._arm_qpos], dtype=float).copy()
+
+    def start_at_joints(self, q: FloatArray, finger_angle: float) -> None:
+        """Reset the physics (object at rest at joint position 0) with the arm at joint angles
+        `q` (6,) [rad] (also its posture) and the fingers at `finger_angle` [rad], the TCP
+        setpoint where the tool is; then settle for `settle_time`."""
+        d = self.data
+        mujoco.mj_resetData(self.model, d)
+        self._phase = 0
+        d.qpos[self._arm_qpos] = q
+        self.set_posture(q)
+        d.qpos[self._finger_qpos] = finger_angle
+        self.set_fingers(finger_angle)
+        mujoco.mj_forward(self.model, d)
+        self._apply_setpoint(self.read_pose())
+        self._step(round(self.settle_time / TIMESTEP))
+        self._settle_filter()
+
     def _solve_ik(self, pose: Pose) -> FloatArray:
         """(6,) arm joint angles putting the TCP at `pose` (damped least squares from several
         seeds; the solution farthest from the joint limits among the converged ones). Solutions
@@ -627,14 +674,21 @@ def build_model(task: TaskConfig, base: FloatArray) -> mujoco.MjModel:
     the wrist sensor's filter (sim.robot_adapter.add_wrench_filter). Built once per task
     configuration, base and process and shared: do not modify it (copy it:
     `copy.copy(model)`)."""
-    return _compiled(task, tuple(float(v) for v in base))
+    return _compiled(task, (float(base[0]), float(base[1]), float(base[2])))
 
 
 @functools.lru_cache(maxsize=32)
 def _compiled(task: TaskConfig, base: tuple[float, float, float]) -> mujoco.MjModel:
-    spec = scene_spec(task)
+    return build_spec(task, np.asarray(base, dtype=float)).compile()
+
+
+def build_spec(
+    task: TaskConfig, base: FloatArray, *, solid_for_arms: bool = False
+) -> mujoco.MjSpec:
+    """`build_model`'s spec, before compiling (more can be composed in: a camera)."""
+    spec = scene_spec(task, solid_for_arms=solid_for_arms)
     model_dir = jaco_model_dir()
-    frame = spec.worldbody.add_frame(pos=list(base))
+    frame = spec.worldbody.add_frame(pos=[float(v) for v in base])
     spec.attach(_arm_spec(model_dir), prefix=ARM_PREFIX, frame=frame)
     for name, kind in (
         (FORCE_SENSOR, mujoco.mjtSensor.mjSENS_FORCE),
@@ -644,4 +698,4 @@ def _compiled(task: TaskConfig, base: tuple[float, float, float]) -> mujoco.MjMo
     add_wrench_filter(
         spec, tcp_site=TCP_SITE, hand_body=HAND_BODY, object_body=OBJECT_PREFIX + OBJECT_BODY
     )
-    return spec.compile()
+    return spec

@@ -56,6 +56,7 @@ __all__ = [
     "SETTLE_TIME",
     "TIMESTEP",
     "ManipulationSim",
+    "build_filtered_spec",
     "build_mjcf",
     "build_model",
     "build_spec",
@@ -87,6 +88,11 @@ def build_model(task: TaskConfig, *, solid_for_arms: bool = False) -> mujoco.MjM
     """The compiled model `ManipulationSim` runs: `build_spec` with the wrist sensor's filter
     (sim.robot_adapter.add_wrench_filter). Built once per task configuration and process and
     shared: do not modify it (copy it: `copy.copy(model)`)."""
+    return build_filtered_spec(task, solid_for_arms=solid_for_arms).compile()
+
+
+def build_filtered_spec(task: TaskConfig, *, solid_for_arms: bool = False) -> mujoco.MjSpec:
+    """`build_model`'s spec before compiling (more can be composed in: a camera)."""
     spec = build_spec(task, solid_for_arms=solid_for_arms)
     h = HOOK_PREFIX
     add_wrench_filter(
@@ -95,7 +101,7 @@ def build_model(task: TaskConfig, *, solid_for_arms: bool = False) -> mujoco.MjM
         hand_body=h + HAND_BODY,
         object_body=OBJECT_PREFIX + OBJECT_BODY,
     )
-    return spec.compile()
+    return spec
 
 
 class ManipulationSim(Embodiment):
@@ -221,17 +227,45 @@ class ManipulationSim(Embodiment):
     # --- reset and grasp ------------------------------------------------------------------
     def grasp_pose(self) -> Pose:
         """The TCP pose at which the hand holds the handle (object at joint position 0)."""
-        mount = self._mount
-        pos = self.task.object.handle_position.copy()
-        if self.task.object.handle == "knob":
+        return self.grasp_pose_at(
+            self.task.object.handle_position, self._mount, self.task.object.handle
+        )
+
+    def grasp_pose_at(self, point: FloatArray, orientation: Rotation, handle: str) -> Pose:
+        """The TCP pose that holds a `handle` shape ("bar", "pole", "plate", "knob") whose
+        grasp centre is `point` (3,) [m] with the hand at `orientation`: the TCP at a bar's or
+        a pole's centre, the palm face on a knob's top face, the straight fingers' tip pads on
+        a plate's top face."""
+        pos = np.array(point, dtype=float)
+        if handle == "knob":
             # palm face on the knob's top face: the TCP lies tcp_depth below it
-            pos = pos + mount.apply(self._tcp_local)
-        elif self.task.object.handle == "plate":
+            pos = pos + orientation.apply(self._tcp_local)
+        elif handle == "plate":
             # fingertip pads (the distal plates' outer faces) on the plate's top face
             hand = self.task.hand
             tip_depth = hand.proximal_length + hand.finger_thickness
-            pos = pos - mount.apply([0.0, 0.0, tip_depth - hand.tcp_depth])
-        return Pose(pos, mount)
+            pos = pos - orientation.apply([0.0, 0.0, tip_depth - hand.tcp_depth])
+        return Pose(pos, orientation)
+
+    def set_fingers(self, angle: float) -> None:
+        """Finger servo targets [rad]: 0 straight, + closes toward the palm's centre line,
+        - opens (the two fingers mirror each other)."""
+        self.data.ctrl[self._finger_act] = [angle, -angle]
+
+    def start_at(self, pose: Pose, finger_angle: float) -> None:
+        """Reset the physics (object at rest at joint position 0) with the TCP at `pose` and
+        the fingers at `finger_angle` [rad] (`set_fingers`), then settle for `settle_time`."""
+        d = self.data
+        mujoco.mj_resetData(self.model, d)
+        q = self._joint_targets(pose.position[None], pose.orientation.as_matrix()[None])[0]
+        d.qpos[self._arm_qpos] = q
+        self._target = q
+        self._set_arm_ctrl(q)
+        d.qpos[self._finger_qpos] = [finger_angle, -finger_angle]
+        self.set_fingers(finger_angle)
+        mujoco.mj_forward(self.model, d)
+        self._step(round(self.settle_time / TIMESTEP))
+        self._settle_filter()
 
     def _place(self, pose: Pose) -> None:
         d = self.data

@@ -1,0 +1,127 @@
+"""Why the hook hand's manipulation of a bar peaks higher after its own grasp than when placed.
+
+    nice -n 10 python benchmarks/studies/grasp_state.py [--kinds drawer,door,lid] [--per-kind 5]
+        [--out FILE.json]
+
+On the end-to-end benchmark's placements (bench/endtoend.py: the same draws, offset
+demonstrations), each hooked-bar kind runs the whole sequence from home four ways, the
+manipulation's peak |F - F_d| [N] recorded:
+
+- `sequence`: as `cap lfo --execute` runs it (the shipped CNN's contact point);
+- `true_point`: the recognizer replaced by the true contact point and approach (is it
+  perception?);
+- `object_back`: at the end of the grasp phase the object's joint is put back to 0 (the hand
+  closing around the bar moved it);
+- `placed`: at the end of the grasp phase the simulation is reset to the placed grasp (as
+  `--start at-grasp` starts), then the same executor runs.
+
+Reads the simulator's state in callbacks outside the pipeline (a study, not the product).
+Writes JSON with provenance, prints a table.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from constraint_aware.bench.endtoend import _demo_skill
+from constraint_aware.bench.provenance import write_results
+from constraint_aware.lfo.grasp_data import contact_label
+from constraint_aware.lfo.sequence import run_in_simulation
+from constraint_aware.lfo.synthetic import HandOffset, random_placement
+from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.recognizer import Recognition, Recognizer, make_recognizer
+from constraint_aware.sim.tasks import KINDS
+
+HERE = Path(__file__).parent
+MODES = ("sequence", "true_point", "object_back", "placed")
+
+
+def _object_back(sim: Any) -> None:
+    joint = (
+        sim.model.joint(sim._obj_joint).id if isinstance(sim._obj_joint, str) else sim._obj_joint
+    )
+    sim.data.qpos[sim.model.jnt_qposadr[joint]] = 0.0
+    sim.data.qvel[:] = 0.0
+    mujoco.mj_forward(sim.model, sim.data)
+
+
+def one(kind: str, index: int, mode: str, policy: ConstraintAwarePolicy) -> dict[str, Any]:
+    k = KINDS.index(kind)
+    place = random_placement(kind, np.random.default_rng([0, k, index]))
+    skill = _demo_skill(place, np.random.default_rng([0, k, index, 2]), HandOffset())
+    moved: dict[str, float] = {}
+
+    class TruePoint:
+        name = "true-point"
+
+        def recognize(self, height: Any, frame: Any, shape: str) -> Recognition:
+            point, approach = contact_label(place.task, shape, np.asarray(skill.start_position))
+            return Recognition(point, approach, self.name)
+
+    recognizer: Recognizer = TruePoint() if mode == "true_point" else make_recognizer("cnn")
+
+    def on_phase(name: str, sim: Any) -> None:
+        if name != "grasp":
+            return
+        # [mm] of a drawer's travel, [mrad] of a hinge's angle
+        moved["object_after_grasp"] = 1000.0 * float(type(sim).progress(sim))
+        if mode == "object_back":
+            _object_back(sim)
+        elif mode == "placed":
+            sim.reset()
+
+    hook: Callable[[str, Any], None] = on_phase
+    result = run_in_simulation(
+        skill, place.task, "hook-hand", policy=policy, seed=index, recognizer=recognizer,
+        on_phase=hook,
+    )  # fmt: skip
+    m = result.record.manipulation
+    return {
+        "kind": kind,
+        "index": index,
+        "mode": mode,
+        "success": result.record.success,
+        "peak_N": None if m is None else m.peak_force,
+        **moved,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--kinds", default="drawer,door,lid")
+    parser.add_argument("--per-kind", type=int, default=5)
+    parser.add_argument("--out", default=str(HERE / "results" / "grasp_state.json"))
+    args = parser.parse_args()
+    policy = ConstraintAwarePolicy.load()
+    runs = [
+        one(kind, i, mode, policy)
+        for kind in args.kinds.split(",")
+        for i in range(args.per_kind)
+        for mode in MODES
+    ]
+    summary = {}
+    for kind in args.kinds.split(","):
+        row = {}
+        for mode in MODES:
+            peaks = [r["peak_N"] for r in runs if r["kind"] == kind and r["mode"] == mode]
+            row[mode] = float(np.median([p for p in peaks if p is not None]))
+        moved = [r["object_after_grasp"] for r in runs if r["kind"] == kind]
+        row["object_after_grasp_median"] = float(np.median(moved))
+        summary[kind] = row
+    out = write_results(args.out, {"per_kind": args.per_kind, "runs": runs, "summary": summary})
+    print("| kind | " + " | ".join(MODES) + " | object after the grasp [mm or mrad] |")
+    print("|---" * (len(MODES) + 2) + "|")
+    for kind, row in summary.items():
+        cells = " | ".join(f"{row[m]:.2f}" for m in MODES)
+        print(f"| {kind} | {cells} | {row['object_after_grasp_median']:.2f} |")
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

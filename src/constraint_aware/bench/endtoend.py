@@ -1,0 +1,316 @@
+"""End to end: the execution sequence from home on randomly placed objects of every kind,
+from demonstrations that locate the object only roughly.
+
+Each run: an object of one kind at a random placement (lfo.synthetic.random_placement, as the
+placement benchmark draws them), a demonstration whose tracked point is offset from the handle
+(lfo.synthetic.HandOffset: up to 5 cm plus 1 cm) with 5 mm tracking noise, the skill inferred
+from it, and the whole sequence (lfo/sequence.py) on the true object: perceive with the head
+camera, reach, approach, grasp, manipulate, release, retreat, return home. Nothing of the
+simulated object reaches the pipeline; the task monitor scores afterwards (the object's
+progress at the end of the manipulation, the recognizer's error against the true contact
+point). Beside it, on the same placement, today's run with the hand placed at the grasp
+(`lfo.execute.execute`) from the placement benchmark's demonstration (no offset), for the
+peak-force comparison.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from constraint_aware.errors import CapError
+from constraint_aware.geometry import angle_deg
+from constraint_aware.lfo.execute import execute
+from constraint_aware.lfo.infer import infer_skill
+from constraint_aware.lfo.synthetic import (
+    HandOffset,
+    Placement,
+    TrackingNoise,
+    demo_of_object,
+    random_placement,
+)
+from constraint_aware.policy import ConstraintAwarePolicy
+from constraint_aware.recognizer import Recognizer, make_recognizer
+from constraint_aware.sim.tasks import KINDS
+
+NOISE = 0.005  # [m] tracking noise, as the placement benchmark's
+FULL_PER_KIND = 15  # placements per kind and robot of benchmarks/placement.py --end-to-end
+ROBOTS = ("hook-hand", "jaco")
+
+
+@dataclass(frozen=True)
+class SequenceRun:
+    """One placement end to end and its teleported twin. Units: m, N, mm, deg."""
+
+    kind: str
+    robot: str
+    index: int
+    success: bool
+    failed_phase: str | None
+    outcome: str  # "success" or the failed phase's outcome
+    reason: str
+    manipulation_peak_N: float | None  # the executor's peak |F - F_d|
+    sequence_peak_N: float  # the largest |F| of any phase
+    true_goal: float  # [m] or [rad]
+    progress: float  # [m] or [rad] the object's position at the end of the manipulation
+    demo_offset_mm: float  # the demonstrated point's distance from the contact point
+    contact_error_mm: float | None  # the recognizer's
+    approach_error_deg: float | None
+    periods: int
+    teleported_success: bool | None = None
+    teleported_peak_N: float | None = None
+    teleported_outcome: str | None = None
+    wall_time_s: float = math.nan
+
+
+@dataclass
+class EndToEndResult:
+    per_kind: int
+    seed: int
+    robots: list[str]
+    kinds: list[str]
+    recognizer: str
+    runs: list[SequenceRun] = field(default_factory=list)
+    summary: list[dict[str, Any]] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def _demo_skill(place: Placement, rng: np.random.Generator, offset: HandOffset | None) -> Any:
+    demo = demo_of_object(
+        place.task, place.goal, rng, TrackingNoise(noise=NOISE),
+        point_offset=None if offset is None else offset.draw(rng),
+    )  # fmt: skip
+    return infer_skill(demo)
+
+
+def one_sequence(
+    place: Placement,
+    index: int,
+    robot: str,
+    skill: Any,
+    policy: ConstraintAwarePolicy | None,
+    recognizer: Recognizer,
+    seed: int,
+) -> SequenceRun:
+    """The sequence on `place` from `skill`, scored afterwards against the truth."""
+    from constraint_aware.lfo.grasp_data import contact_label
+    from constraint_aware.lfo.sequence import run_in_simulation
+
+    task = place.task
+    seen: dict[str, float] = {}
+
+    def on_phase(name: str, sim: Any) -> None:
+        if name == "manipulate":
+            seen["progress"] = float(type(sim).progress(sim))
+
+    start = time.perf_counter()
+    offset = float("nan")
+    try:
+        result = run_in_simulation(
+            skill, task, robot, policy=policy, seed=seed, recognizer=recognizer,
+            on_phase=on_phase,
+        )  # fmt: skip
+    except CapError as exc:  # refused before moving (the station, an estimate)
+        return SequenceRun(
+            place.kind, robot, index, False, "station", "refused", str(exc), None, 0.0,
+            place.goal, 0.0, offset, None, None, 0, wall_time_s=time.perf_counter() - start,
+        )  # fmt: skip
+    record = result.record
+    sim = result.sim
+    progress = seen.get("progress", float(type(sim).progress(sim)))
+    perceive = record.phase("perceive").details
+    contact_err = approach_err = None
+    if "contact_point" in perceive:
+        truth, approach = contact_label(task, perceive["shape"], np.asarray(skill.start_position))
+        contact_err = 1000.0 * float(np.linalg.norm(np.asarray(perceive["contact_point"]) - truth))
+        approach_err = float(angle_deg(np.asarray(perceive["approach"]), approach))
+        offset = 1000.0 * float(np.linalg.norm(np.asarray(skill.start_position) - truth))
+    failed = record.phase(record.failed_phase) if record.failed_phase else None
+    manipulation = record.manipulation
+    return SequenceRun(
+        place.kind, robot, index, record.success, record.failed_phase,
+        "success" if record.success else (failed.outcome if failed else "error"),
+        record.reason, None if manipulation is None else manipulation.peak_force,
+        record.peak_force, place.goal, progress, offset, contact_err, approach_err,
+        record.periods, wall_time_s=time.perf_counter() - start,
+    )  # fmt: skip
+
+
+def run_end_to_end(
+    per_kind: int,
+    robots: tuple[str, ...] = ROBOTS,
+    seed: int = 0,
+    kinds: tuple[str, ...] = KINDS,
+    policy: ConstraintAwarePolicy | None = None,
+    recognizer: str = "cnn",
+    teleported: bool = True,
+    progress: Any = None,
+) -> EndToEndResult:
+    """`per_kind` placements of each kind on each robot (placement i of kind k: the
+    placement benchmark's draw np.random.default_rng([seed, k, i])), end to end from an offset
+    demonstration, and, when `teleported`, today's run placed at the grasp from the placement
+    benchmark's demonstration of the same placement."""
+    policy = policy or ConstraintAwarePolicy.load()
+    found = make_recognizer(recognizer)
+    result = EndToEndResult(per_kind, seed, list(robots), list(kinds), recognizer)
+    for robot in robots:
+        for k, kind in enumerate(kinds):
+            for i in range(per_kind):
+                place = random_placement(kind, np.random.default_rng([seed, k, i]))
+                skill = _demo_skill(place, np.random.default_rng([seed, k, i, 2]), HandOffset())
+                run = one_sequence(place, i, robot, skill, policy, found, i)
+                if teleported:
+                    run = _with_teleported(run, place, robot, policy, seed, k, i)
+                result.runs.append(run)
+                if progress is not None:
+                    progress(run)
+    result.summary = summarize(result.runs)
+    return result
+
+
+def _with_teleported(
+    run: SequenceRun, place: Placement, robot: str, policy: ConstraintAwarePolicy,
+    seed: int, k: int, i: int,
+) -> SequenceRun:  # fmt: skip
+    """`run` with today's teleported run of the same placement (the placement benchmark's
+    demonstration and seed)."""
+    try:
+        skill = _demo_skill(place, np.random.default_rng([seed, k, i, 1]), None)
+        record, _ = execute(skill, "policy", seed=i, task=place.task, policy=policy, robot=robot)
+    except CapError as exc:
+        return dataclasses.replace(
+            run, teleported_success=False, teleported_outcome=f"refused: {exc}"[:120]
+        )
+    return dataclasses.replace(
+        run,
+        teleported_success=record.success,
+        teleported_peak_N=record.peak_force,
+        teleported_outcome=record.outcome,
+    )
+
+
+def _median(values: list[float]) -> float | None:
+    return float(np.median(values)) if values else None
+
+
+def summarize(runs: list[SequenceRun]) -> list[dict[str, Any]]:
+    """Per robot and kind (and per robot over all kinds): successes, failures by phase, peak
+    |F| medians end to end and teleported, their median paired difference where both
+    succeeded, the recognizer's errors, the true shortfall."""
+    out: list[dict[str, Any]] = []
+    robots = list(dict.fromkeys(r.robot for r in runs))
+    kinds = list(dict.fromkeys(r.kind for r in runs))
+    for robot in robots:
+        for kind in [*kinds, "all"]:
+            mine = [r for r in runs if r.robot == robot and (kind == "all" or r.kind == kind)]
+            if not mine:
+                continue
+            failures: dict[str, int] = {}
+            for r in mine:
+                if not r.success:
+                    key = f"{r.failed_phase}: {r.outcome}"
+                    failures[key] = failures.get(key, 0) + 1
+            both = [r for r in mine if r.success and r.teleported_success]
+            pairs = [
+                r.manipulation_peak_N - r.teleported_peak_N
+                for r in both
+                if r.manipulation_peak_N is not None and r.teleported_peak_N is not None
+            ]
+            contact = [r.contact_error_mm for r in mine if r.contact_error_mm is not None]
+            scale = 100.0 if kind in ("drawer", "plate", "pole", "window") else math.degrees(1)
+            short = [(r.true_goal - r.progress) * scale for r in mine if r.success]
+            out.append(
+                {
+                    "robot": robot,
+                    "kind": kind,
+                    "n": len(mine),
+                    "successes": sum(r.success for r in mine),
+                    "success_rate": sum(r.success for r in mine) / len(mine),
+                    "failures": failures,
+                    "peak_N_median": _median(
+                        [
+                            r.manipulation_peak_N
+                            for r in mine
+                            if r.success and r.manipulation_peak_N is not None
+                        ]
+                    ),
+                    "teleported_successes": sum(bool(r.teleported_success) for r in mine),
+                    "teleported_peak_N_median": _median(
+                        [
+                            r.teleported_peak_N
+                            for r in mine
+                            if r.teleported_success and r.teleported_peak_N is not None
+                        ]
+                    ),
+                    "paired": len(pairs),
+                    "peak_difference_N_median": _median(pairs),
+                    "contact_error_mm_median": _median(contact),
+                    "contact_error_mm_p95": (
+                        float(np.percentile(contact, 95)) if contact else None
+                    ),
+                    "shortfall_median": None if kind == "all" else _median(short),
+                    "wall_time_s_median": _median([r.wall_time_s for r in mine]),
+                }
+            )
+    return out
+
+
+#: `cap bench`'s reduced set: placements per kind and robot, robots and kinds (full, quick).
+BENCH_PER_KIND = {False: 1, True: 1}
+BENCH_ROBOTS = {False: ROBOTS, True: ("hook-hand",)}
+BENCH_KINDS = {False: KINDS, True: ("drawer",)}
+
+
+def bench_section(quick: bool, policy: ConstraintAwarePolicy | None = None) -> dict[str, Any]:
+    """The end-to-end experiment as `cap bench` runs it (benchmarks/placement.py
+    --end-to-end runs more)."""
+    out = run_end_to_end(
+        BENCH_PER_KIND[quick], BENCH_ROBOTS[quick], kinds=BENCH_KINDS[quick], policy=policy
+    ).to_dict()
+    offset = HandOffset()
+    out["full_benchmark_per_kind"] = FULL_PER_KIND
+    out["noise_mm"] = NOISE * 1000.0
+    out["offset_cm"] = {"max": 100.0 * offset.max_offset, "jitter": 100.0 * offset.jitter}
+    return out
+
+
+def report_lines(section: dict[str, Any]) -> list[str]:
+    """The report's end-to-end section, read from results.json's "end_to_end"."""
+
+    def f(x: float | None, digits: int = 1) -> str:
+        return "-" if x is None else f"{x:.{digits}f}"
+
+    off = section["offset_cm"]
+    lines = [
+        "## End to end: see, reach, grasp, manipulate, release, return home\n",
+        f"{section['per_kind']} random placements per kind and robot, each demonstrated once "
+        f"with the tracked point up to {off['max']:g} cm (plus {off['jitter']:g} cm) from the "
+        f"handle and {section['noise_mm']:g} mm tracking "
+        "noise; the robot starts at home, finds the contact point with the "
+        f"`{section['recognizer']}` recognizer in one depth image of its head camera, and "
+        "runs every phase with no access to the simulated object. Peak |F| is the "
+        "manipulation's; teleported: the same placement started at the grasp from a "
+        "demonstration without offset (`python benchmarks/placement.py --end-to-end` runs "
+        f"{section['full_benchmark_per_kind']} per kind and robot).\n",
+        "| robot | kind | success | failures by phase | peak F median [N] | teleported "
+        "success | teleported peak F median [N] | paired peak difference median [N] | "
+        "contact error median / p95 [mm] |",
+        "|---" * 9 + "|",
+    ]
+    for s in section["summary"]:
+        failures = ", ".join(f"{k} x{v}" for k, v in s["failures"].items()) or "-"
+        lines.append(
+            f"| {s['robot']} | {s['kind']} | {s['successes']}/{s['n']} | {failures} | "
+            f"{f(s['peak_N_median'])} | {s['teleported_successes']}/{s['n']} | "
+            f"{f(s['teleported_peak_N_median'])} | {f(s['peak_difference_N_median'], 2)} | "
+            f"{f(s['contact_error_mm_median'])} / {f(s['contact_error_mm_p95'])} |"
+        )
+    lines.append("")
+    return lines

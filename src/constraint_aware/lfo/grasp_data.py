@@ -1,0 +1,278 @@
+"""Recognizer data: depth crops of randomly placed, randomly sized objects of every kind, with
+the contact point and approach each should give, generated from the scene builders.
+
+One scene: an object of one kind (sim.tasks.KINDS) at a random placement
+(lfo.synthetic.random_placement) with its handle's and main part's sizes drawn from
+`SIZE_RANGES`, up to `MAX_DISTRACTORS` unrelated boxes and cylinders around it, and a
+demonstration of it whose tracked point is offset from the handle (lfo.synthetic.HandOffset).
+The skill inferred from that demonstration places each robot's head camera
+(lfo.perception.head_camera) and the crop, exactly as at run time. Each camera gives a noisy
+depth image (sim.camera, the run time's renderer, the noise drawn over the crops' region);
+besides the demonstration's own offset, `crops_per_view - 1` more offsets are drawn for the
+same image. Labels are the object's truth: the contact point of its handle shape
+(recognizer.py) and the hand mount's approach, in the crop frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import mujoco
+import numpy as np
+
+from constraint_aware.errors import CapError, InvalidInputError
+from constraint_aware.geometry import FloatArray, angle_deg, random_unit, unit
+from constraint_aware.lfo.infer import SkillParameters, infer_skill
+from constraint_aware.lfo.perception import crop_corners, head_camera, nominal_frame
+from constraint_aware.lfo.scene import STEP_LENGTH
+from constraint_aware.lfo.synthetic import (
+    HandOffset,
+    Placement,
+    TrackingNoise,
+    demo_of_object,
+    random_placement,
+)
+from constraint_aware.recognizer import (
+    HANDLE_SHAPES,
+    POLE_TOP_MARGIN,
+    GraspFrame,
+    depth_crop,
+)
+from constraint_aware.sim.camera import (
+    CameraMount,
+    DepthCamera,
+    DepthNoise,
+    add_camera,
+    region_of_interest,
+)
+from constraint_aware.sim.objects import SCENERY_RGBA, VISUAL_GROUP
+from constraint_aware.sim.scene import scene_spec
+from constraint_aware.sim.tasks import KINDS, TaskConfig, task_from_object
+
+#: Sizes drawn per handle shape [m] (uniform in each range): ObjectConfig fields.
+SIZE_RANGES: dict[str, dict[str, tuple[tuple[float, float], ...]]] = {
+    "bar": {
+        "handle_radius": ((0.010, 0.016),),
+        "handle_length": ((0.10, 0.16),),
+        "standoff": ((0.03, 0.05),),
+    },
+    "pole": {"handle_radius": ((0.012, 0.022),), "handle_length": ((0.15, 0.26),)},
+    "plate": {"handle_half": ((0.05, 0.09), (0.05, 0.09), (0.004, 0.008))},
+    "knob": {"handle_half": ((0.015, 0.025), (0.010, 0.016), (0.009, 0.015))},
+}
+MAX_DISTRACTORS = 3
+DEMO_NOISE = 0.005  # [m] the demonstrations' tracking noise (bench.placement's)
+
+
+@dataclass
+class GraspDataset:
+    """Crops and labels. heights (N, P, P) float32 [m] (NaN: no return); shapes (N,) indices
+    into HANDLE_SHAPES; points (N, 3) [m] and approaches (N, 3) unit: the truth in the crop
+    frame; kinds, robots (N,) names; offsets (N,) [m] the demonstrated point's distance from
+    the contact point; nominal_errors (N,) [deg] the nominal approach's error."""
+
+    heights: np.ndarray
+    shapes: np.ndarray
+    points: np.ndarray
+    approaches: np.ndarray
+    kinds: np.ndarray
+    robots: np.ndarray
+    offsets: np.ndarray
+    nominal_errors: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.shapes)
+
+    def save(self, path: str | Path) -> Path:
+        out = Path(path).with_suffix(".npz")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        np.savez_compressed(
+            out, **{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        )
+        return out
+
+    @classmethod
+    def load(cls, path: str | Path) -> GraspDataset:
+        with np.load(Path(path), allow_pickle=False) as data:
+            return cls(**{f.name: data[f.name] for f in dataclasses.fields(cls)})
+
+    @classmethod
+    def concatenate(cls, parts: list[GraspDataset]) -> GraspDataset:
+        return cls(
+            **{
+                f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                for f in dataclasses.fields(cls)
+            }
+        )
+
+
+def sized_placement(kind: str, rng: np.random.Generator, sizes: bool = True) -> Placement:
+    """A random placement (lfo.synthetic.random_placement) with the handle's sizes drawn from
+    `SIZE_RANGES` (`sizes`), and the main part's by +-25 %."""
+    place = random_placement(kind, rng)
+    if not sizes:
+        return place
+    obj = place.task.object
+    fields: dict[str, Any] = {}
+    for name, ranges in SIZE_RANGES[obj.handle].items():
+        values = tuple(float(rng.uniform(lo, hi)) for lo, hi in ranges)
+        fields[name] = values[0] if len(values) == 1 else values
+    fields["panel_half"] = tuple(float(v * rng.uniform(0.75, 1.25)) for v in obj.panel_half)
+    obj = dataclasses.replace(obj, **fields)
+    task = task_from_object(kind, obj, success_progress=place.goal, step_length=STEP_LENGTH)
+    return Placement(kind, task, place.goal)
+
+
+def contact_label(
+    task: TaskConfig, shape: str, origin: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The true contact point (3,) [m] and approach (3,) unit of `task`'s handle, world frame
+    (recognizer.py's definitions; a pole's at the height of `origin`)."""
+    obj = task.object
+    point = np.asarray(obj.handle_position, dtype=float)
+    approach = np.asarray(task.hand_mount(), dtype=float)[:, 2]
+    if shape == "pole":
+        up = np.array([0.0, 0.0, 1.0])
+        top = float(point @ up) + 0.5 * obj.handle_length - POLE_TOP_MARGIN
+        height = min(float(np.asarray(origin) @ up), top)
+        point = point + (height - float(point @ up)) * up
+    return point, approach
+
+
+def add_distractors(
+    spec: mujoco.MjSpec, around: FloatArray, approach: FloatArray, rng: np.random.Generator
+) -> None:
+    """Up to `MAX_DISTRACTORS` visual boxes, cylinders and spheres 12-35 cm from `around`
+    (3,) [m], none in the hand's corridor (within 10 cm of the approach line in front)."""
+    kinds = (
+        mujoco.mjtGeom.mjGEOM_BOX,
+        mujoco.mjtGeom.mjGEOM_CYLINDER,
+        mujoco.mjtGeom.mjGEOM_SPHERE,
+    )
+    a = unit(np.asarray(approach, dtype=float))
+    for i in range(int(rng.integers(0, MAX_DISTRACTORS + 1))):
+        for _ in range(20):
+            p = around + random_unit(rng, 1)[0] * rng.uniform(0.12, 0.35)
+            rel = p - around
+            along = float(rel @ a)
+            if along < 0.0 and float(np.linalg.norm(rel - along * a)) < 0.10:
+                continue  # in front of the handle, where the hand comes in
+            break
+        geom = spec.worldbody.add_geom(
+            name=f"distractor{i}",
+            type=kinds[int(rng.integers(0, len(kinds)))],
+            size=[float(v) for v in rng.uniform(0.01, 0.04, 3)],
+            pos=[float(v) for v in p],
+            rgba=list(SCENERY_RGBA),
+        )
+        geom.contype = 0
+        geom.conaffinity = 0
+        geom.group = VISUAL_GROUP
+
+
+def _demonstrated_skill(
+    place: Placement, rng: np.random.Generator, offset: HandOffset
+) -> SkillParameters | None:
+    """The skill of an offset demonstration of `place`, None when it gives none (or the wrong
+    constraint: the crop would then be of another handle shape)."""
+    demo = demo_of_object(
+        place.task, place.goal, rng, TrackingNoise(noise=DEMO_NOISE),
+        point_offset=offset.draw(rng),
+    )  # fmt: skip
+    try:
+        skill = infer_skill(demo)
+    except CapError:
+        return None
+    if skill.constraint_type != place.task.constraint_type or skill.start_position is None:
+        return None
+    return skill
+
+
+def scene_samples(
+    kind: str,
+    rng: np.random.Generator,
+    robots: tuple[str, ...] = ("hook-hand", "jaco"),
+    crops_per_view: int = 4,
+    sizes: bool = True,
+    distractors: bool = True,
+    offset: HandOffset | None = None,
+    noise: DepthNoise | None = None,
+) -> GraspDataset | None:
+    """The crops of one random scene of `kind` (module docstring), None when its
+    demonstration gives no usable skill."""
+    offset = offset or HandOffset()
+    place = sized_placement(kind, rng, sizes)
+    skill = _demonstrated_skill(place, rng, offset)
+    if skill is None:
+        return None
+    shape, frame0 = nominal_frame(skill)
+    spec = scene_spec(place.task)
+    truth0, approach0 = contact_label(place.task, shape, frame0.origin)
+    if distractors:
+        add_distractors(spec, truth0, approach0, rng)
+    mounts: list[CameraMount] = []
+    for robot in robots:
+        mount = head_camera(robot, skill)
+        mount = dataclasses.replace(mount, name=f"{mount.name}_{robot}")
+        add_camera(spec, mount)
+        mounts.append(mount)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    rows: dict[str, list[Any]] = {f.name: [] for f in dataclasses.fields(GraspDataset)}
+    for robot, mount in zip(robots, mounts, strict=True):
+        origins = [frame0.origin] + [truth0 + offset.draw(rng) for _ in range(crops_per_view - 1)]
+        corners = np.concatenate([crop_corners(GraspFrame(o, frame0.rotation)) for o in origins])
+        roi = region_of_interest(mount, corners)
+        with DepthCamera(model, mount, noise) as camera:
+            image = camera.capture(data, rng, roi)
+        points = image.points()
+        for origin in origins:
+            frame = GraspFrame(np.asarray(origin), frame0.rotation)
+            truth, approach = contact_label(place.task, shape, frame.origin)
+            rows["heights"].append(depth_crop(points, frame).astype(np.float32))
+            rows["shapes"].append(HANDLE_SHAPES.index(shape))
+            rows["points"].append(frame.to_local(truth[None])[0])
+            rows["approaches"].append(frame.rotation.T @ approach)
+            rows["kinds"].append(kind)
+            rows["robots"].append(robot)
+            rows["offsets"].append(float(np.linalg.norm(frame.origin - truth)))
+            rows["nominal_errors"].append(float(angle_deg(frame.rotation[:, 2], approach)))
+    return GraspDataset(**{k: np.asarray(v) for k, v in rows.items()})
+
+
+def generate(
+    scenes_per_kind: int,
+    seed: int = 0,
+    kinds: tuple[str, ...] = KINDS,
+    robots: tuple[str, ...] = ("hook-hand", "jaco"),
+    crops_per_view: int = 4,
+    sizes: bool = True,
+    distractors: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> GraspDataset:
+    """`scenes_per_kind` usable scenes of each kind (`scene_samples`), seeded: scene i of kind
+    k draws from np.random.default_rng([seed, k, i, attempt])."""
+    if scenes_per_kind < 1:
+        raise InvalidInputError(f"scenes_per_kind: {scenes_per_kind}; valid: >= 1")
+    if crops_per_view < 1:
+        raise InvalidInputError(f"crops_per_view: {crops_per_view}; valid: >= 1")
+    parts: list[GraspDataset] = []
+    total = scenes_per_kind * len(kinds)
+    done = 0
+    for k, kind in enumerate(kinds):
+        for i in range(scenes_per_kind):
+            for attempt in range(20):
+                rng = np.random.default_rng([seed, k, i, attempt])
+                part = scene_samples(kind, rng, robots, crops_per_view, sizes, distractors)
+                if part is not None:
+                    parts.append(part)
+                    break
+            done += 1
+            if progress is not None:
+                progress(done, total)
+    return GraspDataset.concatenate(parts)
