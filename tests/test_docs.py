@@ -214,3 +214,20 @@ def test_every_python_block_in_the_docs_compiles() -> None:
     assert len(blocks) >= 5
     for page, code in blocks:
         compile(code, str(page), "exec")
+
+
+def test_no_merge_conflict_markers_are_left_in_the_repository() -> None:
+    suffixes = {".py", ".md", ".toml", ".yml", ".yaml", ".json", ".txt", ".cfg"}
+    found = []
+    for path in sorted(ROOT.rglob("*")):
+        parts = path.relative_to(ROOT).parts
+        if path.suffix not in suffixes or not path.is_file():
+            continue
+        if parts[0].startswith(".") or parts[0] in {"build", "site", "bench-out"}:
+            continue
+        if any(p in {"node_modules", "__pycache__"} or p.endswith(".egg-info") for p in parts):
+            continue
+        for number, line in enumerate(path.read_text(errors="replace").splitlines(), 1):
+            if line.startswith(("<<<<<<< ", ">>>>>>> ")) or line == "=======":
+                found.append(f"{path.relative_to(ROOT)}:{number}")
+    assert not found, f"merge conflict markers: {found}"
