@@ -422,10 +422,12 @@ def policy_section(
     """Run the section: the randomized suite (aggregated per task), the paper's offsets and the
     resistance map. Quick: no suite, the drawer and door at a paper offset, the 8x door."""
     threshold = deadband.threshold_from_noise(sensor_noise)
-    suite_runs: list[RunResult] = []
-    for cond, seed in suite_conditions(0 if quick else suite_seeds):
-        for ctrl in POLICY_SECTION_CONTROLLERS:
-            suite_runs.append(run_condition(cond, ctrl, seed, threshold, sensor_noise))
+    suite_jobs = [
+        (cond, ctrl, seed, threshold, sensor_noise, None, "policy")
+        for cond, seed in suite_conditions(0 if quick else suite_seeds)
+        for ctrl in POLICY_SECTION_CONTROLLERS
+    ]
+    suite_runs = map_in_order(_run_condition_job, suite_jobs, label="policy section suite")
     paper = run_all(paper_offset_conditions(quick), [0], sensor_noise=sensor_noise)
     res = run_all(
         resistance_map(quick), range(1 if quick else map_seeds), sensor_noise=sensor_noise

@@ -16,6 +16,7 @@ peak-force comparison.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -23,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from constraint_aware.bench.sweep import map_in_order
 from constraint_aware.errors import CapError
 from constraint_aware.geometry import angle_deg
 from constraint_aware.lfo.execute import execute
@@ -156,23 +158,43 @@ def run_end_to_end(
     """`per_kind` placements of each kind on each robot (placement i of kind k: the
     placement benchmark's draw np.random.default_rng([seed, k, i])), end to end from an offset
     demonstration, and, when `teleported`, today's run placed at the grasp from the placement
-    benchmark's demonstration of the same placement."""
+    benchmark's demonstration of the same placement. The runs go to the current sweep
+    executor (`bench.sweep.map_in_order`); `progress(run)` is called for each afterwards, in
+    order."""
     policy = policy or ConstraintAwarePolicy.load()
-    found = make_recognizer(recognizer)
     result = EndToEndResult(per_kind, seed, list(robots), list(kinds), recognizer)
-    for robot in robots:
-        for k, kind in enumerate(kinds):
-            for i in range(per_kind):
-                place = random_placement(kind, np.random.default_rng([seed, k, i]))
-                skill = _demo_skill(place, np.random.default_rng([seed, k, i, 2]), HandOffset())
-                run = one_sequence(place, i, robot, skill, policy, found, i)
-                if teleported:
-                    run = _with_teleported(run, place, robot, policy, seed, k, i)
-                result.runs.append(run)
-                if progress is not None:
-                    progress(run)
+    jobs = [
+        (robot, k, kind, i, seed, policy, recognizer, teleported)
+        for robot in robots
+        for k, kind in enumerate(kinds)
+        for i in range(per_kind)
+    ]
+    result.runs = map_in_order(_sequence_job, jobs, label="end to end")
+    if progress is not None:
+        for run in result.runs:
+            progress(run)
     result.summary = summarize(result.runs)
     return result
+
+
+@functools.cache
+def _recognizer(name: str) -> Recognizer:
+    """The recognizer `name`, loaded once per process (a sweep's worker keeps it)."""
+    return make_recognizer(name)
+
+
+def _sequence_job(
+    job: tuple[str, int, str, int, int, ConstraintAwarePolicy, str, bool],
+) -> SequenceRun:
+    """One placement end to end (and teleported), as `run_end_to_end` describes; a sweep's
+    worker calls it."""
+    robot, k, kind, i, seed, policy, recognizer, teleported = job
+    place = random_placement(kind, np.random.default_rng([seed, k, i]))
+    skill = _demo_skill(place, np.random.default_rng([seed, k, i, 2]), HandOffset())
+    run = one_sequence(place, i, robot, skill, policy, _recognizer(recognizer), i)
+    if teleported:
+        run = _with_teleported(run, place, robot, policy, seed, k, i)
+    return run
 
 
 def _with_teleported(

@@ -392,10 +392,21 @@ def _run_bench(
         },
         "skipped": skipped,
     }
+    seconds: dict[str, float] = {}
+    clock = time.perf_counter()
+
+    def lap(section: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        seconds[section] = now - clock
+        clock = now
+
     results["learning"] = ex.learning(out_dir, policy, source)
+    lap("learning")
     results["paper"] = _summaries_with_units(
         ex.paper_experiments(out_dir, cfg.render, policy, cfg.robot)
     )
+    lap("paper")
     table, suite_runs = ex.headline(cfg, policy)
     for row in table.values():
         for cell in row.values():
@@ -405,27 +416,37 @@ def _run_bench(
         "table": table,
         "peak_force_samples": ex.peak_force_samples(suite_runs),
     }
+    lap("headline")
     if "embodiment" not in skipped:
         results["embodiment"] = embodiment_for_bench(quick, cfg.suite_seeds, policy).to_dict()
+        lap("embodiment")
     all_runs = list(suite_runs)
     results["placement"] = placement.bench_section(quick, policy)
+    lap("placement")
     if "end_to_end" not in skipped:
         results["end_to_end"] = endtoend.bench_section(quick, policy)
+        lap("end_to_end")
     if not quick:
         heatmap, hm_runs = ex.offset_heatmap(cfg, policy)
         heatmap["full_success_halfwidth_deg"] = _full_success_halfwidth(heatmap)
         results["heatmap"] = heatmap
+        lap("heatmap")
         sens, sens_runs = ex.sensitivity(cfg, policy)
         _first_failures(sens)
         results["sensitivity"] = sens
+        lap("sensitivity")
         all_runs += hm_runs + sens_runs
     results["policy_section"] = policy_section(quick).to_dict()
+    lap("policy_section")
     results["ablation"] = ablation_section(quick, cfg.workers).to_dict()
+    lap("ablation")
     results["faults"] = fault_suite(
         FAULT_BENCH_TASKS_QUICK if quick else tuple(TASKS),
         QUICK_FAULTS if quick else tuple(FAULTS),
         policy=policy,
     ).to_dict()
+    lap("faults")
+    results["meta"]["section_seconds"] = seconds
     worst = ex.worst_cases(all_runs)
     for w in worst:
         w["sensor_bias_magnitude_N"] = float(np.linalg.norm(w["sensor_bias_N"]))
