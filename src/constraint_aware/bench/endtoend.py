@@ -24,7 +24,6 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.bench.sweep import map_in_order
 from constraint_aware.errors import CapError
 from constraint_aware.geometry import angle_deg
 from constraint_aware.lfo.execute import execute
@@ -158,9 +157,7 @@ def run_end_to_end(
     """`per_kind` placements of each kind on each robot (placement i of kind k: the
     placement benchmark's draw np.random.default_rng([seed, k, i])), end to end from an offset
     demonstration, and, when `teleported`, today's run placed at the grasp from the placement
-    benchmark's demonstration of the same placement. The runs go to the current sweep
-    executor (`bench.sweep.map_in_order`); `progress(run)` is called for each afterwards, in
-    order."""
+    benchmark's demonstration of the same placement."""
     policy = policy or ConstraintAwarePolicy.load()
     result = EndToEndResult(per_kind, seed, list(robots), list(kinds), recognizer)
     jobs = [
@@ -169,9 +166,12 @@ def run_end_to_end(
         for k, kind in enumerate(kinds)
         for i in range(per_kind)
     ]
-    result.runs = map_in_order(_sequence_job, jobs, label="end to end")
-    if progress is not None:
-        for run in result.runs:
+    # in this process, not on the sweep's forked workers: there the sequences' offscreen
+    # depth rendering (EGL) hung
+    for job in jobs:
+        run = _sequence_job(job)
+        result.runs.append(run)
+        if progress is not None:
             progress(run)
     result.summary = summarize(result.runs)
     return result
@@ -179,7 +179,7 @@ def run_end_to_end(
 
 @functools.cache
 def _recognizer(name: str) -> Recognizer:
-    """The recognizer `name`, loaded once per process (a sweep's worker keeps it)."""
+    """The recognizer `name`, loaded once per process."""
     return make_recognizer(name)
 
 
