@@ -44,11 +44,13 @@ def canonical_results(out_dir: Path) -> tuple[dict[str, Any], float]:
     results = json.loads((out_dir / RESULTS).read_text())
     wall = float(results["meta"].pop("wall_time_s"))
     results["meta"].pop("workers")
+    results["meta"].pop("section_seconds", None)
     results.pop("provenance", None)
 
     def drop_wall_times(node: Any) -> None:
         if isinstance(node, dict):
             node.pop("wall_time_s", None)
+            node.pop("wall_time_s_median", None)
             for value in node.values():
                 drop_wall_times(value)
         elif isinstance(node, list):
