@@ -328,34 +328,17 @@ def region_of_interest(
     )
 
 
-_MAX_GEOM = 2000  # geoms a depth image draws at most (the scenes hold a few hundred)
-
-
 class _EglDepthRenderer(render._EglRenderer):
     """Depth on an EGL context of our own (see sim/render.py: MuJoCo chose GLFW at import)."""
 
-    def __init__(self, model: mujoco.MjModel, height: int, width: int) -> None:
-        from mujoco.egl import GLContext
+    MAX_GEOM = 2000  # the scenes hold a few hundred
+    # the smallest font: a depth image shows no text (the 150 % font costs ~0.5 s here)
+    FONT_SCALE = mujoco.mjtFontScale.mjFONTSCALE_50
 
-        if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
-            raise CapError(
-                f"depth image {width}x{height} exceeds the model's offscreen buffer "
-                f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}"
-            )
-        self._gl = GLContext(width, height)
-        self._gl.make_current()
-        self._model = model
-        self._scene = mujoco.MjvScene(model, maxgeom=_MAX_GEOM)
-        self._option = mujoco.MjvOption()
-        self._perturb = mujoco.MjvPerturb()
-        # the smallest font: a depth image shows no text (the 150 % font costs ~0.5 s here)
-        self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_50.value)
-        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._context)
+    def __init__(self, model: mujoco.MjModel, height: int, width: int) -> None:
+        super().__init__(model, height, width)
         # the depth map mujoco.Renderer reads (and `_linear_depth` converts): 0 at the far plane
         self._context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
-        self._rect = mujoco.MjrRect(0, 0, width, height)
-        self._rgb = np.empty((height, width, 3), dtype=np.uint8)
-        self._camera = None
 
     def depth(self) -> FloatArray:
         self._gl.make_current()
@@ -417,8 +400,8 @@ class DepthCamera:
                 self._egl = True
             else:
                 self._renderer = mujoco.Renderer(
-                    model, height=h, width=w, max_geom=_MAX_GEOM,
-                    font_scale=mujoco.mjtFontScale.mjFONTSCALE_50,
+                    model, height=h, width=w, max_geom=_EglDepthRenderer.MAX_GEOM,
+                    font_scale=_EglDepthRenderer.FONT_SCALE,
                 )  # fmt: skip
                 self._renderer.enable_depth_rendering()
                 self._egl = False

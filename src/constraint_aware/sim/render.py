@@ -47,6 +47,9 @@ def headless_egl_needed() -> bool:
 class _EglRenderer:
     """mujoco.Renderer's job on an EGL context we own (MuJoCo picked GLFW at import)."""
 
+    MAX_GEOM = 10000  # geoms a frame draws at most
+    FONT_SCALE = mujoco.mjtFontScale.mjFONTSCALE_150
+
     def __init__(self, model: mujoco.MjModel, height: int, width: int) -> None:
         from mujoco.egl import GLContext  # sets PYOPENGL_PLATFORM=egl itself if unset
 
@@ -58,10 +61,10 @@ class _EglRenderer:
         self._gl = GLContext(width, height)
         self._gl.make_current()
         self._model = model
-        self._scene = mujoco.MjvScene(model, maxgeom=10000)
+        self._scene = mujoco.MjvScene(model, maxgeom=self.MAX_GEOM)
         self._option = mujoco.MjvOption()
         self._perturb = mujoco.MjvPerturb()
-        self._context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150.value)
+        self._context = mujoco.MjrContext(model, self.FONT_SCALE.value)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._context)
         self._rect = mujoco.MjrRect(0, 0, width, height)
         self._rgb = np.empty((height, width, 3), dtype=np.uint8)
