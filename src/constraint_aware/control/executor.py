@@ -256,10 +256,15 @@ class Executor:
             )
         if not pose_ok:  # an untrusted pose is not acted on: hold the last target this period
             return self._held(st, force)
-        return self._move(st, force, torque, pose)
+        return self._move(st, force, torque, pose, travel)
 
     def _move(
-        self, st: RunState, force: FloatArray, torque: FloatArray, pose: Pose
+        self,
+        st: RunState,
+        force: FloatArray,
+        torque: FloatArray,
+        pose: Pose,
+        travel: float | None,
     ) -> Pose | RunRecord:
         cfg = self.config
         inp = ControlInput(
@@ -275,7 +280,7 @@ class Executor:
             tracking_time_constant=st.lag.tracking_time_constant,
             stiffness=st.stiffness,
             last_move=st.prediction.last_length if st.moves > 0 else None,
-            hand_travel=self._hand_travel(st, pose),
+            hand_travel=travel,
         )
         raw = np.asarray(self.controller.next_direction(inp), dtype=float)
         if stop := direction_stop(raw):

@@ -324,8 +324,10 @@ def step_length_stop(length: float, nominal: float) -> Stop | None:
 def command_stop(target: Pose, previous: Pose, bound: float) -> Stop | None:
     """A command that is not finite, or whose position jumps from the `previous` command by
     more than `bound` [m]: not sent."""
-    quat = target.orientation.as_quat()
-    if not (all_finite(target.position) and all_finite(quat)):
+    # the previous command's orientation object was checked when it was sent (or held)
+    same = target.orientation is previous.orientation
+    quat = None if same else target.orientation.as_quat()
+    if not (all_finite(target.position) and (quat is None or all_finite(quat))):
         return Stop("bad_command", "non-finite command (not sent)")
     jump = norm(target.position - previous.position)
     if jump > bound:
