@@ -1,4 +1,4 @@
-"""The bench's policy section alone (issue 9): default, default + probe, default (raw), paper,
+"""The bench's policy section alone: default, default + probe, default (raw), paper,
 classical, projection.
 
     nice -n 10 python benchmarks/policy_section.py [--seeds 20] [--out benchmarks/results]

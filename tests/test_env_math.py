@@ -125,7 +125,7 @@ def test_horizontal_workplane_keeps_everything_horizontal(rng: np.random.Generat
     assert np.max(np.abs(env.direction[:, 2])) < 1e-12
 
 
-# --- the object's own resistance along the joint (issue 9) ----------------------------------
+# --- the object's own resistance along the joint -------------------------------------------------
 def test_dry_resistance_limits_the_force_along_the_axis() -> None:
     k, step, r0 = 2000.0, 0.01, 4.0
     # aligned: no push across the guide, the spring's remaining stretch balances R0

@@ -129,7 +129,7 @@ GOAL = ExecutorConfig(goal=GoalConfig(travel=0.2))
 #: frictionless, resistance-free guide to 0.1 deg, where |F| (0.04 N) stays under the dead band
 #: and the executor reads `contact_lost` after 5 steps: a limit of the idealized guide (a real
 #: joint resists), not of the guards tested here.
-GUARD_TEST_POLICY = Path(__file__).resolve().parent / "data" / "stop15_default.npz"
+GUARD_TEST_POLICY = Path(__file__).resolve().parent / "data" / "earlier_default.npz"
 
 
 def run(robot: LaggingGuide, offset: float = 30.0, policy: bool = True) -> RunRecord:

@@ -132,9 +132,9 @@ def model_properties(model: mujoco.MjModel) -> dict[str, Any]:
     return props
 
 
-#: The default policy the snapshot's rollouts were written with (stop 15; the shipped default
-#: has since been retrained): the rollouts compare scenes, so the policy stays fixed.
-SNAPSHOT_POLICY = Path(__file__).resolve().parent / "data" / "stop15_default.npz"
+#: The default policy the snapshot's rollouts were written with (an earlier one; the shipped
+#: default has since been retrained): the rollouts compare scenes, so the policy stays fixed.
+SNAPSHOT_POLICY = Path(__file__).resolve().parent / "data" / "earlier_default.npz"
 
 
 def rollout(task: TaskConfig) -> dict[str, Any]:
