@@ -357,3 +357,13 @@ def test_cap_run_profile_and_strict_inputs(tmp_path: Path) -> None:
     assert proc.returncode == 2 and "--profile without --execute" in proc.stderr
     proc = cap("lfo", "demo.json", "--strict-inputs")
     assert proc.returncode == 2 and "--strict-inputs without --execute" in proc.stderr
+
+
+def test_cap_lfo_from_home_hands_the_profile_to_the_manipulation(tmp_path: Path) -> None:
+    good = profile(dead_band=0.45).save(tmp_path / "hook.json")
+    demo = Path(__file__).resolve().parents[1] / "examples" / "drawer_demo.json"
+    out = tmp_path / "seq.json"
+    proc = cap("lfo", str(demo), "--execute", "--profile", str(good), "--record", str(out))
+    assert proc.returncode in (0, 1), proc.stderr
+    manipulation = json.loads(out.read_text())["manipulation"]
+    assert manipulation["inputs"]["dead_band"] == {"value": 0.45, "source": "profile"}
