@@ -162,9 +162,7 @@ def guarded_move(
         return _run(robot, record, path, cfg, contact_from, on_period, period, bound)
     except BaseException as exc:
         record.outcome, record.reason = "error", f"{type(exc).__name__}: {exc}"
-        note = request_hold(robot)
-        if note:
-            record.notes.append(note)
+        request_hold(robot, record.notes)
         exc.move_record = record  # type: ignore[attr-defined]
         raise
 
@@ -172,9 +170,7 @@ def guarded_move(
 def _stop(robot: Robot, record: MoveRecord, outcome: str, reason: str) -> MoveRecord:
     record.outcome, record.reason = outcome, reason
     if outcome != "reached":
-        note = request_hold(robot)
-        if note:
-            record.notes.append(note)
+        request_hold(robot, record.notes)
     return record
 
 
@@ -190,9 +186,7 @@ def _run(
 ) -> MoveRecord:
     set_posture = getattr(robot, "set_posture", None)
     # start from where the hand is (a path is planned from the measured state)
-    note = request_hold(robot)
-    if note:
-        record.notes.append(note)
+    request_hold(robot, record.notes)
     hold_pose = robot.commanded_pose()
     samples: list[FloatArray] = []
     for _ in range(cfg.offset_samples):

@@ -315,9 +315,7 @@ class _Session:
                 self.periods += 1
         except Exception as exc:
             notes.append(f"restoring the starting setpoint failed: {exc!r}")
-        failed = request_hold(self.robot)
-        if failed:
-            notes.append(failed)
+        request_hold(self.robot, notes)
 
 
 def _check_pose(pose: Pose, what: str) -> None:
@@ -394,9 +392,7 @@ def calibrate(
 def _finish(robot: Robot, session: _Session | None, profile: RobotProfile, wait: bool) -> None:
     """Restore the start and hold (or only hold, when the start was never read)."""
     if session is None:
-        failed = request_hold(robot)
-        if failed:
-            profile.notes.append(failed)
+        request_hold(robot, profile.notes)
         return
     session.restore(profile.notes, wait=wait)
     profile.periods = session.periods

@@ -360,9 +360,7 @@ class Executor:
         return record
 
     def _hold(self, record: RunRecord) -> None:
-        failed = request_hold(self.robot)
-        if failed:  # the record must still be returned
-            record.notes.append(failed)
+        request_hold(self.robot, record.notes)
 
     def _fail(self, exc: BaseException) -> None:
         """Finish the record with outcome "error", hold, and attach the record to `exc`."""

@@ -588,6 +588,4 @@ def _restore(robot: Robot, home: Pose | None, result: ProbeResult, wait: bool = 
                 robot.advance()
     except Exception as exc:  # the result must still be returned
         result.notes.append(f"restoring the setpoint failed: {exc!r}")
-    failed = request_hold(robot)
-    if failed:
-        result.notes.append(failed)
+    request_hold(robot, result.notes)

@@ -140,17 +140,16 @@ class TaskMonitor(Protocol):
     def handle_position(self) -> FloatArray: ...
 
 
-def request_hold(robot: object) -> str:
-    """Tell the robot to hold (its optional `hold()`); "" when it held or has no `hold`, else
-    a note naming the failure (a stop must still return its record)."""
+def request_hold(robot: object, notes: list[str]) -> None:
+    """Tell the robot to hold (its optional `hold()`); a failure is appended to `notes` as a
+    note naming it, not raised (a stop must still return its record)."""
     hold = getattr(robot, "hold", None)
     if hold is None:
-        return ""
+        return
     try:
         hold()
     except Exception as exc:
-        return f"robot.hold() failed: {exc!r}"
-    return ""
+        notes.append(f"robot.hold() failed: {exc!r}")
 
 
 def reported_time_constant(robot: object) -> tuple[float | None, str]:

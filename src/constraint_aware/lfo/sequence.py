@@ -286,9 +286,7 @@ def _fail(
 ) -> SequenceRecord:
     phase.outcome, phase.reason = outcome, reason
     record.failed_phase, record.reason = phase.name, f"{phase.name}: {reason}"
-    note = request_hold(robot)
-    if note:
-        record.notes.append(note)
+    request_hold(robot, record.notes)
     return record
 
 
@@ -643,9 +641,7 @@ def _execute_into(
         _run_phases(robot, capture, skill, controller, policy, recognizer, cfg, record,
                     on_phase, on_period)  # fmt: skip
     except BaseException as exc:
-        note = request_hold(robot)
-        if note:
-            record.notes.append(note)
+        request_hold(robot, record.notes)
         current = next((p for p in record.phases if p.outcome == "running"), None)
         if current is not None:
             current.outcome, current.reason = "error", f"{type(exc).__name__}: {exc}"
