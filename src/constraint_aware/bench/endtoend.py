@@ -16,7 +16,6 @@ peak-force comparison.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -159,42 +158,23 @@ def run_end_to_end(
     demonstration, and, when `teleported`, today's run placed at the grasp from the placement
     benchmark's demonstration of the same placement."""
     policy = policy or ConstraintAwarePolicy.load()
+    found = make_recognizer(recognizer)
     result = EndToEndResult(per_kind, seed, list(robots), list(kinds), recognizer)
-    jobs = [
-        (robot, k, kind, i, seed, policy, recognizer, teleported)
-        for robot in robots
-        for k, kind in enumerate(kinds)
-        for i in range(per_kind)
-    ]
     # in this process, not on the sweep's forked workers: there the sequences' offscreen
     # depth rendering (EGL) hung
-    for job in jobs:
-        run = _sequence_job(job)
-        result.runs.append(run)
-        if progress is not None:
-            progress(run)
+    for robot in robots:
+        for k, kind in enumerate(kinds):
+            for i in range(per_kind):
+                place = random_placement(kind, np.random.default_rng([seed, k, i]))
+                skill = _demo_skill(place, np.random.default_rng([seed, k, i, 2]), HandOffset())
+                run = one_sequence(place, i, robot, skill, policy, found, i)
+                if teleported:
+                    run = _with_teleported(run, place, robot, policy, seed, k, i)
+                result.runs.append(run)
+                if progress is not None:
+                    progress(run)
     result.summary = summarize(result.runs)
     return result
-
-
-@functools.cache
-def _recognizer(name: str) -> Recognizer:
-    """The recognizer `name`, loaded once per process."""
-    return make_recognizer(name)
-
-
-def _sequence_job(
-    job: tuple[str, int, str, int, int, ConstraintAwarePolicy, str, bool],
-) -> SequenceRun:
-    """One placement end to end (and teleported), as `run_end_to_end` describes; a sweep's
-    worker calls it."""
-    robot, k, kind, i, seed, policy, recognizer, teleported = job
-    place = random_placement(kind, np.random.default_rng([seed, k, i]))
-    skill = _demo_skill(place, np.random.default_rng([seed, k, i, 2]), HandOffset())
-    run = one_sequence(place, i, robot, skill, policy, _recognizer(recognizer), i)
-    if teleported:
-        run = _with_teleported(run, place, robot, policy, seed, k, i)
-    return run
 
 
 def _with_teleported(
