@@ -726,7 +726,7 @@ def cmd_lfo(args: argparse.Namespace) -> int:
     out: dict[str, Any] = {"demo": str(args.demo), "skill": skill.to_dict()}
     _print_skill(skill, out_console)
     if args.execute and args.start == "home":
-        return _lfo_sequence(args, skill, policy, out, out_console)
+        return _lfo_sequence(args, skill, policy, profile, out, out_console)
     if args.execute:
         from constraint_aware.lfo.execute import execute
 
@@ -761,7 +761,12 @@ def cmd_lfo(args: argparse.Namespace) -> int:
 
 
 def _lfo_sequence(
-    args: argparse.Namespace, skill: Any, policy: Any, out: dict[str, Any], out_console: Console
+    args: argparse.Namespace,
+    skill: Any,
+    policy: Any,
+    profile: Any,
+    out: dict[str, Any],
+    out_console: Console,
 ) -> int:
     """`cap lfo --execute` from home: the whole sequence on the object the demonstration
     shows, its record (--record), video (--video) and summary (--json)."""
@@ -773,7 +778,7 @@ def _lfo_sequence(
         result, info = execute_from_home(
             skill, controller=args.controller, seed=args.seed, policy=policy, robot=args.robot,
             recognizer=args.recognizer, on_period=on_period,
-            profile=_load_profile(args.profile), strict_inputs=bool(args.strict_inputs),
+            profile=profile, strict_inputs=bool(args.strict_inputs),
         )  # fmt: skip
     except BaseException as exc:  # write what there is, then report
         partial = getattr(exc, "sequence_record", None)

@@ -83,7 +83,8 @@ STARTS = (START_HOME, START_AT_GRASP)
 
 @dataclass(frozen=True)
 class SequenceConfig:
-    """The sequence's geometry and motion limits. Units in brackets."""
+    """The sequence's geometry and motion limits, and what its manipulation is given (the
+    robot's profile, strict inputs). Units in brackets."""
 
     pre_grasp: float = 0.10  # [m] back from the grasp along the approach
     overshoot: float = 0.012  # [m] passive closures aim this far past the surface
