@@ -33,7 +33,7 @@ def hook_hand_drawer() -> tuple[Any, RobotProfile, dict[str, Any]]:
     robot = Recorder(RequiredOnly(sim))
     profile = calibrate(robot, "hook hand", task.workplane_normal)
     truth = {
-        "stiffness": sim.translational_stiffness,
+        "stiffness": _force_per_step(profile),
         "tracking_time_constant": sim.tracking_time_constant,
         "force_noise": 0.1,
         "grasp_play": task.hand.finger_offset
@@ -41,6 +41,39 @@ def hook_hand_drawer() -> tuple[Any, RobotProfile, dict[str, Any]]:
         - task.object.handle_radius,
     }
     return robot, profile, truth
+
+
+def _force_per_step(profile: RobotProfile) -> float:
+    """[N/m] the truth of the calibrated stiffness: the force per setpoint step with the
+    drawer locked, between held levels at about 3 N and 6 N (noise-free force), averaged over
+    the directions the calibration found blocked (its profile note)."""
+    import re
+
+    from constraint_aware.control.simulate import RunSpec, grasped
+
+    locked = (("object__joint_range", (-1e-5, 1e-5)), ("object__frictionloss", 1000.0))
+    _task, sim = grasped(RunSpec("drawer-opening", seed=0, sensor_noise=0.0, overrides=locked))
+    home = sim.commanded_pose()
+
+    def hold(depth: float, u: np.ndarray, periods: int) -> np.ndarray:
+        for _ in range(periods):
+            sim.command_pose(Pose(home.position + depth * u, home.orientation))
+            sim.advance()
+        return np.asarray(sim.true_wrench().force, dtype=float)
+
+    note = next(n for n in profile.notes if n.startswith("stiffness by blocked direction"))
+    values = []
+    for d in re.findall(r"\(([^)]*)\) \d+", note):
+        u = np.array([float(x) for x in d.split(",")])
+        rest = hold(0.0, u, 10)
+        depth = 0.0
+        while np.linalg.norm(hold(depth, u, 3) - rest) < 3.0:
+            depth += 2.5e-4
+        f_a = hold(depth, u, 5)
+        f_b = hold(depth + 1.5e-3, u, 5)
+        values.append(float(np.linalg.norm(f_b - f_a)) / 1.5e-3)
+        hold(0.0, u, 10)
+    return float(np.mean(values))
 
 
 class Recorder:

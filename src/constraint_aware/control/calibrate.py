@@ -155,7 +155,7 @@ class CalibrationConfig:
     first_push: float = 4e-4  # [m] the first stair of each push
     free_travel: float = 0.003  # [m] a direction where the hand follows the setpoint this
     # far with |dF| below contact_force is free
-    travel_limit: float = 0.02  # [m] the furthest the setpoint ever moves from the start
+    travel_limit: float = 0.04  # [m] the furthest the setpoint ever moves from the start
     return_periods: int = 2  # periods to bring the setpoint back from a free push
     max_periods: int = 49  # the calibration's budget of control periods: the pushes stop
     # short of it, what is left is spent at rest (more noise readings)
@@ -600,9 +600,11 @@ def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -
         # a few stairs); once the force rises with a slope it can be trusted, what the slope
         # says passes contact_force (at least half the last stair: a smaller one would change
         # |dF| by little more than the noise); never more than _safe_step
-        grow = min(2.0 * step, 0.5 * cfg.free_travel)
+        grow = 2.0 * step
         slope = _contact_slope(push, session.touch)
-        if slope is not None:
+        if slope is None:
+            grow = min(grow, 0.5 * cfg.free_travel)
+        else:  # a soft arm needs long stairs to reach contact_force within the budget
             grow = min(grow, max((aim - df) / slope, 0.5 * step))
         step = min(grow, _safe_step(session, push, df))
     if push.kind == "blocked":
@@ -727,12 +729,10 @@ def _stiffness(
     q = profile.quantities
     sigma = q["force_noise"].value or 0.0
     method = (
-        "blocked pushes: |F_B - F_A| / |stretch_B - stretch_A| between a held reading at "
-        f"{cfg.contact_force:g} N and one about {cfg.push_force - cfg.contact_force:g} N "
-        "above it, in the workplane"
+        "blocked pushes: the force per setpoint step, |F_B - F_A| / |setpoint_B - setpoint_A|, "
+        f"between a held reading at {cfg.contact_force:g} N and one about "
+        f"{cfg.push_force - cfg.contact_force:g} N above it, in the workplane"
     )
-    if tau is not None:
-        method += f"; stretch less tau v (tau {tau:.3g} s, v the hand's velocity)"
 
     def spring(reading: Reading, before: Reading | None) -> FloatArray:
         if tau is None or before is None:
@@ -741,18 +741,38 @@ def _stiffness(
 
     estimates: list[tuple[float, float]] = []
     moving: list[tuple[float, float]] = []
+    directions: list[str] = []
     for p in pushes:
         if p.level_a is None or p.level_b is None:
             continue
         df = in_plane(p.level_b.force - p.level_a.force, normal)
+        f = float(np.linalg.norm(df))
+        if f < LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
+            continue
+        if p.settled_a and p.settled_b:
+            # the force per setpoint step against the blocked direction: what k x step means
+            s = float(np.linalg.norm(in_plane(p.level_b.commanded - p.level_a.commanded, normal)))
+            if s > 1e-6:
+                estimates.append((f / s, f))
+                directions.append(f"({', '.join(f'{x:.2g}' for x in p.direction)}) {f / s:.0f}")
+            continue
+        # the object gave way (the hand still moved): the setpoint's step is shared with the
+        # object's motion, so only the arm's spring, from its stretch, is left to measure
         ds = in_plane(spring(p.level_b, p.before_b) - spring(p.level_a, p.before_a), normal)
-        f, s = float(np.linalg.norm(df)), float(np.linalg.norm(ds))
-        if s > 1e-6 and f >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
-            (estimates if p.settled_a and p.settled_b else moving).append((f / s, f))
+        s = float(np.linalg.norm(ds))
+        if s > 1e-6:
+            moving.append((f / s, f))
     if not estimates and moving:
-        # the object gave way under every push: the hand still moved at the readings
         estimates = moving
-        method += "; the object gave way under the pushes (the hand still moved)"
+        method = (
+            "the object gave way under every push (the hand still moved): |F_B - F_A| / "
+            "|stretch_B - stretch_A| (stretch = setpoint - measured tool point), the arm's "
+            "spring alone"
+        ) + (f"; stretch less tau v (tau {tau:.3g} s, v the hand's velocity)" if tau else "")
+    elif directions:
+        note = "stiffness by blocked direction [N/m]: " + "; ".join(directions)
+        if note not in profile.notes:  # the second pass (with tau) finds the same
+            profile.notes.append(note)
     if estimates:
         values = [k for k, _ in estimates]
         value = float(np.mean(values))
