@@ -110,6 +110,7 @@ class DeadSensor:
         self.last: Wrench | None = None
         self.rest: list[Wrench] = []  # the readings over the F_d hold
         self.rng = np.random.default_rng(99)
+        self.onset: int | None = None  # the period the sensor failed at
 
     def __getattr__(self, name: str) -> Any:
         if name == "translational_stiffness" and not self.__dict__["report_stiffness"]:
@@ -126,6 +127,8 @@ class DeadSensor:
                 self.rest.append(self.last)
             return self.last
         assert self.last is not None
+        if self.onset is None:
+            self.onset = self.periods
         if self.fault == "noise_at_tare":
             tare = np.mean([w.force for w in self.rest], axis=0)
             torque = np.mean([w.torque for w in self.rest], axis=0)
@@ -261,7 +264,10 @@ def dead_sensor(
                             robot_ = made[0]
                             true = np.array(robot_.true_forces)
                             hold = true[: max(hold_periods, 1)].mean(axis=0)
-                            peak = float(np.max(np.linalg.norm(true - hold, axis=1)))
+                            magnitude = np.linalg.norm(true - hold, axis=1)
+                            peak = float(np.max(magnitude))
+                            after = magnitude[robot_.onset :] if robot_.onset is not None else []
+                            peak_after = float(np.max(after)) if len(after) else None
                             limit = float(sim.task.force_limit)
                             runs.append(
                                 {
@@ -274,6 +280,7 @@ def dead_sensor(
                                     "outcome": record.outcome,
                                     "reason": record.reason,
                                     "peak_true_force_N": peak,
+                                    "peak_true_force_after_onset_N": peak_after,
                                     "force_limit_N": limit,
                                     "true_force_above_limit": peak > limit,
                                     "success_on_dead_sensor": record.success,
@@ -295,6 +302,10 @@ def dead_sensor(
         row["above_limit"] += r["true_force_above_limit"]
         row["success"] += r["success_on_dead_sensor"]
         row["peak"] = max(row["peak"], r["peak_true_force_N"])
+        if r["success_on_dead_sensor"] and r["peak_true_force_after_onset_N"] is not None:
+            row["success_peak_after_onset"] = max(
+                row.get("success_peak_after_onset", 0.0), r["peak_true_force_after_onset_N"]
+            )
     for row in summary.values():
         row["outcomes"] = dict(row["outcomes"])
     return {"onset_moves": ONSET, "summary": summary, "runs": runs}

@@ -126,6 +126,8 @@ def profile(period: float = 0.1, **values: float | None) -> RobotProfile:
         "tracking_time_constant": 0.02,
         "grasp_play": 0.0,
         "sensor_convention": -1.0,
+        "deflection_error": None,
+        "deflection_error_per_speed": None,
     }
     truth.update(values)
     quantities = {

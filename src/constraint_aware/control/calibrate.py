@@ -70,6 +70,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from constraint_aware.control.lag import LagModel
 from constraint_aware.control.probe import (
     STIFFNESS_VERDICTS,
     ProbeConfig,
@@ -87,6 +88,7 @@ from constraint_aware.control.robot import (
     reported_time_constant,
     request_hold,
 )
+from constraint_aware.control.sensor_health import steady_speed
 from constraint_aware.deadband import MIN_THRESHOLD, NOISE_SIGMAS, threshold_from_noise
 from constraint_aware.errors import (
     InvalidInputError,
@@ -248,6 +250,7 @@ class _Session:
         self.touch = cfg.contact_force / 3.0  # [N] |dF| from which a push has met something
         self._last: FloatArray | None = None
         self._repeats = 0
+        self.log: list[Reading] = []  # every reading, in order
 
     @property
     def remaining(self) -> int:
@@ -296,13 +299,15 @@ class _Session:
                     f"|F - F_rest| = {change:.1f} N > the calibration's limit "
                     f"{self.cfg.force_limit:g} N",
                 )
-        return Reading(
+        reading = Reading(
             self.periods,
             force,
             np.asarray(pose.position, dtype=float),
             np.asarray(commanded.position, dtype=float),
             pose,
         )
+        self.log.append(reading)
+        return reading
 
     def restore(self, notes: list[str], wait: bool) -> None:
         """Command the starting setpoint back (and let a period pass when `wait`), then tell
@@ -429,6 +434,7 @@ def _run(session: _Session, normal: FloatArray | None, profile: RobotProfile) ->
     if tau is not None:  # once more, the hand's damping removed from the stretch
         _stiffness(profile, pushes, normal, cfg, period, tau)
         _time_constant(profile, pushes, period)
+    _deflection_error(profile, pushes, session.log, period, cfg)
     _play(profile, pushes, normal, cfg)
     _convention(profile, pushes, normal, cfg)
     if k_report is not None:
@@ -919,16 +925,20 @@ def _time_constant(profile: RobotProfile, pushes: list[Push], period: float) -> 
         "impedance m x'' = k (s - x) - c x' - R (R from the wrist reading): tau = c / k"
     )
     q = profile.quantities
-    free = [p for p in pushes if p.kind == "free"]
+    # a free push; else a soft one (the hand moved against a rising resistance R, which the
+    # model takes from the wrist reading)
+    free = [p for p in pushes if p.kind == "free"] or [p for p in pushes if p.kind == "soft"]
     k = q["stiffness"].value
     if not free:
         q["tracking_time_constant"] = Measurement.unmeasured(
             "tracking_time_constant",
-            "no free direction: every push met the object or stayed soft; tau needs a "
-            "direction the hand can move in",
+            "no free or soft direction: every push met the object; tau needs a direction the "
+            "hand can move in",
             method,
         )
         return
+    if free[0].kind == "soft":
+        method += " (on a soft push: no direction was free)"
     if k is None:
         q["tracking_time_constant"] = Measurement.unmeasured(
             "tracking_time_constant",
@@ -960,6 +970,71 @@ def _time_constant(profile: RobotProfile, pushes: list[Push], period: float) -> 
         f"{method}; damping ratio {zeta:.2g}, residual {rms / span:.1%} of the motion",
         len(readings),
     )
+
+
+def _deflection_error(
+    profile: RobotProfile,
+    pushes: list[Push],
+    log: list[Reading],
+    period: float,
+    cfg: CalibrationConfig,
+) -> None:
+    """The deflection model's error (control.sensor_health's dead-sensor test): over every
+    reading of every push (out, held and back), the calibrated stiffness times the lagged
+    deflection from the push's start (control.lag.LagModel with the calibrated tau) less the
+    read |F - F_start|. deflection_error: its largest value with the hand at rest (moving less
+    than SETTLE_SHARE x free_travel per period); deflection_error_per_speed: the largest excess
+    over that per unit hand speed while it moved at a steady speed (`steady_speed`: where the
+    lag model, tau v, holds, as it does for the executor's even steps)."""
+    q = profile.quantities
+    k, tau = q["stiffness"].value, q["tracking_time_constant"].value
+    method = (
+        "every push reading: stiffness x |lagged deflection| (tau credited along the hand's "
+        "motion) less |F - F_start|; the largest with the hand at rest, and the largest "
+        "excess per unit hand speed while it moved at a steady speed"
+    )
+    if k is None:
+        for name in ("deflection_error", "deflection_error_per_speed"):
+            q[name] = Measurement.unmeasured(name, "the stiffness is unmeasured", method)
+        return
+    rest_speed = SETTLE_SHARE * cfg.free_travel / period  # [m/s]
+    still: list[float] = []
+    moving: list[tuple[float, float]] = []  # (error [N], speed [m/s])
+    index = {r.period: i for i, r in enumerate(log)}
+    for p in pushes:
+        end = p.back[-1].period if p.back else log[-1].period
+        start = index[p.base.period]
+        lag = LagModel(tau, deflection0=p.base.position - p.base.commanded)
+        previous = np.zeros(3)
+        for before, reading in zip(log[start:], log[start + 1 :], strict=False):
+            if reading.period > end:
+                break
+            lag.velocity = (reading.position - before.position) / period
+            implied = k * float(
+                np.linalg.norm(lag.lagged_deflection(reading.position, reading.commanded))
+            )
+            error = implied - float(np.linalg.norm(reading.force - p.base.force))
+            speed = float(np.linalg.norm(lag.velocity))
+            if speed < rest_speed:
+                still.append(error)
+            elif steady_speed(lag.velocity, previous):
+                moving.append((error, speed))
+            previous = lag.velocity
+    if not still:
+        for name in ("deflection_error", "deflection_error_per_speed"):
+            q[name] = Measurement.unmeasured(name, "no push reading with the hand at rest", method)
+        return
+    static = max(0.0, max(still))
+    q["deflection_error"] = Measurement(static, 0.0, "N", method, len(still))
+    if not moving:
+        q["deflection_error_per_speed"] = Measurement.unmeasured(
+            "deflection_error_per_speed",
+            "the hand never moved at a steady speed during the pushes",
+            method,
+        )
+        return
+    per_speed = max(0.0, max((e - static) / v for e, v in moving))
+    q["deflection_error_per_speed"] = Measurement(per_speed, 0.0, "N s/m", method, len(moving))
 
 
 def fit_impedance(

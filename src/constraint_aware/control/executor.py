@@ -228,6 +228,9 @@ class Executor:
         travel = self._hand_travel(st, pose) if pose_ok else None
         if stop := st.health.classify(stop, magnitude, st.threshold, travel, cfg.step_length):
             return self._end(st, stop)
+        deflected = (st.lag, pose.position, st.target.position, magnitude, st.threshold, travel)
+        if pose_ok and (stop := st.health.check_deflection(*deflected, cfg.step_length)):
+            return self._end(st, stop)
         if self.monitor is not None and (reason := self.monitor.grasp_failure()):
             return self._finish(st.record, "grasp_lost", reason)
         grasp_contact = getattr(self.robot, "grasp_contact", None)

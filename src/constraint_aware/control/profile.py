@@ -46,6 +46,16 @@ QUANTITIES: dict[str, tuple[str, str]] = {
         "its stiffness)",
     ),
     "grasp_play": ("m", "free travel of the hand in the grasp before the force rises"),
+    "deflection_error": (
+        "N",
+        "the arm's deflection model's error with the hand at rest: the most by which stiffness "
+        "x |lagged deflection| exceeded the read |F| during the calibration's pushes",
+    ),
+    "deflection_error_per_speed": (
+        "N s/m",
+        "the deflection model's error per hand speed on top of deflection_error (the "
+        "tracking time constant's error grows with the speed)",
+    ),
     "sensor_convention": (
         "1",
         "median cosine between the force change and the arm's stretch change on blocked "
@@ -274,7 +284,12 @@ class RobotProfile:
                     + ", ".join(QUANTITY_NAMES)
                     + ")"
                 )
-        quantities = {name: check.measurement(raw, name) for name in QUANTITY_NAMES}
+        quantities = {
+            name: Measurement.unmeasured(name, "not in the profile file: calibrate again")
+            if name in OPTIONAL_QUANTITIES and name not in raw
+            else check.measurement(raw, name)
+            for name in QUANTITY_NAMES
+        }
         return cls(
             robot=robot,
             quantities=quantities,
@@ -304,7 +319,11 @@ _RANGES: dict[str, tuple[float | None, bool, float | None]] = {
     "tracking_time_constant": (0.0, True, None),
     "grasp_play": (0.0, False, None),
     "sensor_convention": (-1.0, False, 1.0),
+    "deflection_error": (0.0, False, None),
+    "deflection_error_per_speed": (0.0, False, None),
 }
+#: Quantities a profile file may leave out: read as unmeasured.
+OPTIONAL_QUANTITIES = ("deflection_error", "deflection_error_per_speed")
 
 
 class _Checker:

@@ -25,7 +25,9 @@ Where each value comes from (`resolve_robot_values`), first that has it:
   over its long rest), else derived at the start of the run from the spread of the F_d
   samples (source "measured");
 - the force noise sigma (the frozen-reading test, control.sensor_health): the profile's
-  only; without it that test is off.
+  only; without it that test is off;
+- the deflection model (the dead-sensor test, control.sensor_health): the profile's
+  stiffness, tau and measured deflection error, together or not at all.
 
 A robot's report of a member the Robot protocol documents (`translational_stiffness`,
 `tracking_time_constant`) ranks above the profile: it is the arm controller's own value, and
@@ -47,6 +49,7 @@ from typing import Any, Literal
 import numpy as np
 
 from constraint_aware.control.profile import ProfileFileError, RobotProfile
+from constraint_aware.control.sensor_health import DeflectionModel
 from constraint_aware.errors import CapError, InvalidInputError
 from constraint_aware.geometry import FloatArray
 
@@ -108,7 +111,9 @@ class MissingInputError(CapError):
 class RobotValues:
     """What the run knows about the robot besides its readings, each with its source
     (`resolve_robot_values`). Units: stiffness [N/m], tracking_time_constant [s], grasp_play
-    [m], dead_band [N] (None: derived from the F_d samples), force_noise [N] per axis."""
+    [m], dead_band [N] (None: derived from the F_d samples), force_noise [N] per axis;
+    deflection_model: the profile's stiffness, tau and measured deflection error (the
+    dead-sensor test, control.sensor_health), None without them."""
 
     stiffness: float | None
     stiffness_source: InputSource
@@ -119,6 +124,7 @@ class RobotValues:
     dead_band: float | None
     dead_band_source: InputSource
     force_noise: float | None
+    deflection_model: DeflectionModel | None = None
 
 
 def check_profile_period(profile: RobotProfile, control_period: float) -> None:
@@ -200,8 +206,21 @@ def resolve_robot_values(
     elif band is None:
         band_source = "measured"
     return RobotValues(
-        k, k_source, tau, tau_source, play, play_source, band, band_source, noise_profile
-    )
+        k, k_source, tau, tau_source, play, play_source, band, band_source, noise_profile,
+        _deflection_model(profile),
+    )  # fmt: skip
+
+
+def _deflection_model(profile: RobotProfile | None) -> DeflectionModel | None:
+    """The profile's deflection model when its stiffness and both errors were measured."""
+    if profile is None:
+        return None
+    k = profile.value("stiffness")
+    error = profile.value("deflection_error")
+    per_speed = profile.value("deflection_error_per_speed")
+    if k is None or error is None or per_speed is None:
+        return None
+    return DeflectionModel(k, profile.value("tracking_time_constant"), error, per_speed)
 
 
 def gather_inputs(

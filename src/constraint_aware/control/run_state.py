@@ -177,7 +177,7 @@ def begin_run(
         lead=LeadGuard.for_run(cfg, stiffness),
         prediction=ForcePrediction(stiffness, cfg.limits.force_limit),
         self_check=SensorSelfCheck(cfg.self_check.steps, stiffness, normal, lag),
-        health=SensorHealth.for_run(values.force_noise),
+        health=SensorHealth.for_run(values.force_noise, values.deflection_model),
         dead_band=values.dead_band,
     )
 

@@ -11,6 +11,17 @@ Two ways a wrist sensor fails without returning a non-finite number or repeating
   does not move is an arm not following its target: `not_following`, as before). This needs
   the stiffness: the robot's report, the configuration's, or a robot profile's
   (control.calibrate), so a robot reporting none is covered once it has been calibrated;
+- the same dead sensor where the deflection implies less than the arm-force check's
+  allowance (a hand dragging a light object along its constraint: a few newtons): with a
+  robot profile that measured the deflection model's own error (control.calibrate:
+  `deflection_error` with the hand at rest, `deflection_error_per_speed` while it moved at a
+  steady speed), the profile's stiffness times the lagged deflection (its tau credited) must
+  show in the reading to within that error, a + b |v|. A reading within the dead band while
+  the hand moves at a steady speed and the implied force exceeds the reading by more than
+  that, DEAD_PERIODS periods in a row, stops `sensor_dead`. The test uses the profile's own
+  stiffness and tau (the ones its error was measured with), whatever the run's step force
+  comes from; it is off without them, and while the hand accelerates (where tau v is not
+  the lag);
 - it freezes with a jitter far below its noise (a driver that re-sends a held value with
   rounding, or a filter stuck at its state): the readings are not identical, so the stale
   guard's exact-repeat test passes, but their spread over `STALE_WINDOW` periods is below
@@ -34,8 +45,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from constraint_aware.control.guards import Stop
+from constraint_aware.control.lag import LagModel
 from constraint_aware.deadband import noise_std
-from constraint_aware.geometry import FloatArray
+from constraint_aware.geometry import FloatArray, norm
 
 #: A window's pooled spread below this fraction of the sensor's noise sigma is a frozen
 #: reading.
@@ -45,6 +57,43 @@ STALE_WINDOW = 5
 #: A hand whose measured travel over the last period reaches this fraction of the step length
 #: is moving (a frozen arm's hand travels only its pose noise).
 MOVING_FRACTION = 0.25
+#: The hand moves at a steady speed when its velocity changed by at most this share of its
+#: speed over the last period (the lag model tau v describes a steady follower, not one
+#: accelerating after a jump of its setpoint).
+STEADY_SHARE = 0.25
+#: Periods in a row the implied force must exceed the reading by more than the measured error
+#: before the sensor is judged dead (a single reading is one noise draw).
+DEAD_PERIODS = 2
+
+
+def steady_speed(velocity: FloatArray, previous: FloatArray) -> bool:
+    """Whether the hand's `velocity` (3,) [m/s] differs from the last period's `previous` (3,)
+    [m/s] by at most STEADY_SHARE of its speed."""
+    speed = norm(velocity)
+    return speed > 0 and norm(np.asarray(velocity) - np.asarray(previous)) <= STEADY_SHARE * speed
+
+
+@dataclass(frozen=True)
+class DeflectionModel:
+    """A robot profile's deflection model and its measured error (control.calibrate).
+
+    Attributes:
+        stiffness: [N/m] the calibrated k.
+        tracking_time_constant: [s] the calibrated tau, or None (no lag credited).
+        error: [N] the model's largest error with the hand at rest (a).
+        error_per_speed: [N s/m] its largest excess per unit hand speed at a steady speed (b).
+    """
+
+    stiffness: float
+    tracking_time_constant: float | None
+    error: float
+    error_per_speed: float
+
+    def implied(self, lag: LagModel, position: FloatArray, target: FloatArray) -> float:
+        """[N] k x |lagged deflection| of the hand at `position` (3,) [m] from `target` (3,)
+        [m], with the run's preload and velocity (`lag`) and this model's tau."""
+        own = LagModel(self.tracking_time_constant, lag.deflection0, velocity=lag.velocity)
+        return self.stiffness * norm(own.lagged_deflection(position, target))
 
 
 @dataclass
@@ -57,13 +106,65 @@ class SensorHealth:
     """
 
     noise: float | None
+    model: DeflectionModel | None = None
     window: deque[FloatArray] = field(default_factory=lambda: deque(maxlen=STALE_WINDOW))
+    previous_velocity: FloatArray = field(default_factory=lambda: np.zeros(3))
+    short: int = 0  # periods in a row the reading fell short of the implied force
 
     @classmethod
-    def for_run(cls, calibrated_noise: float | None) -> SensorHealth:
-        """The tests for a run; `calibrated_noise` [N] the profile's sigma, or None."""
+    def for_run(
+        cls, calibrated_noise: float | None, model: DeflectionModel | None = None
+    ) -> SensorHealth:
+        """The tests for a run; `calibrated_noise` [N] the profile's sigma, or None; `model`
+        the profile's deflection model, or None (no deflection test)."""
         usable = calibrated_noise is not None and calibrated_noise > 0
-        return cls(calibrated_noise if usable else None)
+        return cls(calibrated_noise if usable else None, model)
+
+    def check_deflection(
+        self,
+        lag: LagModel,
+        position: FloatArray,
+        target: FloatArray,
+        magnitude: float,
+        dead_band: float,
+        hand_travel: float | None,
+        step_length: float,
+    ) -> Stop | None:
+        """The deflection test (module docstring), once per period with a trusted pose.
+
+        Args:
+            lag: the run's lag model (its preload and the hand's velocity [m/s]).
+            position: (3,) [m] the measured tool point.
+            target: (3,) [m] the commanded target.
+            magnitude: [N] the read |F - F_d|.
+            dead_band: [N] the run's dead band.
+            hand_travel: [m] the hand's travel over the last period (None before moving).
+            step_length: [m] the run's step.
+        """
+        velocity, previous = lag.velocity, self.previous_velocity
+        self.previous_velocity = np.array(velocity, dtype=float)
+        m = self.model
+        if m is None or lag.deflection0 is None or hand_travel is None:
+            return None
+        moving = hand_travel >= MOVING_FRACTION * step_length and steady_speed(velocity, previous)
+        if not moving or magnitude >= dead_band:
+            self.short = 0
+            return None
+        implied = m.implied(lag, position, target)
+        bound = m.error + m.error_per_speed * norm(velocity)
+        if implied - magnitude <= bound:
+            self.short = 0
+            return None
+        self.short += 1
+        if self.short < DEAD_PERIODS:
+            return None
+        return Stop(
+            "sensor_dead",
+            f"the sensor reads no force (|F| = {magnitude:.2f} N, within the dead band "
+            f"{dead_band:.2g} N) while the hand moves steadily ({norm(velocity) * 1000:.0f} "
+            f"mm/s) and its deflection implies {implied:.1f} N, more than the calibrated "
+            f"model's error {bound:.2f} N above the reading, {self.short} periods in a row",
+        )
 
     def offset_sampled(self, forces: FloatArray) -> Stop | None:
         """The F_d samples (n, 3) [N] are in: a stop when they are frozen against the
