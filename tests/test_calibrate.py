@@ -311,6 +311,34 @@ def test_profile_round_trip(
     assert json.loads(path.read_text())["format"] == PROFILE_FORMAT
 
 
+def test_a_profile_file_without_the_deflection_error_reads_it_as_unmeasured(
+    tmp_path: Path, hook_hand_drawer: tuple[Any, RobotProfile, dict[str, Any]]
+) -> None:
+    _robot, profile, _truth = hook_hand_drawer
+    data = profile.to_dict()
+    for name in ("deflection_error", "deflection_error_per_speed"):
+        del data["quantities"][name]
+    path = tmp_path / "robot.json"
+    path.write_text(json.dumps(data))
+    loaded = RobotProfile.load(path)
+    assert loaded.value("stiffness") == profile.value("stiffness")
+    assert loaded.value("deflection_error") is None
+    assert "calibrate again" in loaded.quantities["deflection_error_per_speed"].reason
+
+
+def test_the_deflection_error_bounds_the_models_misses_during_the_pushes(
+    hook_hand_drawer: tuple[Any, RobotProfile, dict[str, Any]],
+) -> None:
+    """The calibration measures its own deflection model's error: at rest within a few
+    newtons (the noise of |F| and the grasp's give), per speed a bounded excess."""
+    _robot, profile, _truth = hook_hand_drawer
+    a = profile.value("deflection_error")
+    b = profile.value("deflection_error_per_speed")
+    assert a is not None and 0.0 <= a < 3.0
+    assert b is not None and b >= 0.0
+    assert profile.quantities["deflection_error"].count >= 5
+
+
 def _profile_file(tmp_path: Path, change: Any) -> Path:
     profile = calibrate(FrozenArm(), "frozen", (0.0, 0.0, 1.0))
     data = profile.to_dict()

@@ -35,7 +35,7 @@ from constraint_aware.control.profile import (
     RobotProfile,
 )
 from constraint_aware.control.run_inputs import MissingInputError
-from constraint_aware.control.sensor_health import STALE_FRACTION
+from constraint_aware.control.sensor_health import DEAD_PERIODS, STALE_FRACTION
 from constraint_aware.geometry import rotate_about
 from constraint_aware.spatial import Pose, Wrench
 
@@ -256,6 +256,25 @@ def test_a_dead_sensor_reading_noise_around_its_tare_stops_sensor_dead(
     assert robot.peak_true_force < LIMIT and robot.holds == 1
 
 
+def test_the_calibrated_deflection_error_catches_a_dead_sensor_below_the_arm_force_allowance() -> (
+    None
+):
+    """Pushing along the guide (250 N/m) the force grows slowly: the arm-force check's
+    allowance (0.75 step forces, 15 N here) hides it for many steps. The profile's measured
+    deflection error (a + b |v|) bounds the model far tighter, so the dead sensor is seen
+    within a few newtons."""
+    without = Guide("dead")
+    late = Executor(without, FixedDirection(), GOAL, profile=profile()).run(d0(0))
+    robot = Guide("dead")
+    model = profile(deflection_error=0.3, deflection_error_per_speed=5.0)
+    rec = Executor(robot, FixedDirection(), GOAL, profile=model).run(d0(0))
+    assert rec.outcome == "sensor_dead", rec.reason
+    assert "calibrated model's error" in rec.reason and not rec.success
+    # the sensor fails after 4 moves: seen DEAD_PERIODS moves later, at half the force or less
+    assert rec.n_steps <= 4 + DEAD_PERIODS + 1 < late.n_steps
+    assert robot.peak_true_force < 0.5 * without.peak_true_force and robot.holds == 1
+
+
 def test_without_any_stiffness_a_dead_sensor_goes_unseen() -> None:
     """Why the profile matters: nothing tells the executor the hand is pushing, and the run
     ends `success` on a dead sensor."""
@@ -301,9 +320,11 @@ def test_an_exactly_repeated_reading_is_still_a_stale_wrench() -> None:
 @pytest.mark.parametrize("seed", range(12))
 def test_a_healthy_sensor_is_never_judged_dead(seed: int) -> None:
     """Noise at the calibrated sigma, pushing into the guide or along it: no false stop."""
+    model = profile(deflection_error=0.3, deflection_error_per_speed=5.0)
     for offset in (0.0, 25.0):
-        rec = Executor(Guide(seed=seed), FixedDirection(), GOAL, profile=profile()).run(d0(offset))
-        assert rec.outcome != "sensor_dead", rec.reason
+        for given in (profile(), model):
+            rec = Executor(Guide(seed=seed), FixedDirection(), GOAL, profile=given).run(d0(offset))
+            assert rec.outcome != "sensor_dead", rec.reason
 
 
 def test_a_quieter_sensor_than_calibrated_is_not_frozen_until_far_below() -> None:
