@@ -136,6 +136,9 @@ TOUCH_SIGMAS = 5.0
 SAFE_SHARE = 0.8
 #: Periods kept in the budget for levels A and B of a push that met the object.
 RESERVE_PERIODS = 4
+#: The deflection error per speed is at least this many standard uncertainties of tau times
+#: the stiffness (the coverage of a 3-sigma bound).
+TAU_COVERAGE = 3.0
 #: Periods a push needs at least (a few stairs, the way back and the settling): pushing stops
 #: when fewer remain in the budget.
 MIN_PUSH_PERIODS = 6
@@ -985,7 +988,8 @@ def _deflection_error(
     read |F - F_start|. deflection_error: its largest value with the hand at rest (moving less
     than SETTLE_SHARE x free_travel per period); deflection_error_per_speed: the largest excess
     over that per unit hand speed while it moved at a steady speed (`steady_speed`: where the
-    lag model, tau v, holds, as it does for the executor's even steps)."""
+    lag model, tau v, holds, as it does for the executor's even steps), and at least
+    TAU_COVERAGE x stiffness x tau's standard uncertainty (what tau's error adds per speed)."""
     q = profile.quantities
     k, tau = q["stiffness"].value, q["tracking_time_constant"].value
     method = (
@@ -1034,6 +1038,12 @@ def _deflection_error(
         )
         return
     per_speed = max(0.0, max((e - static) / v for e, v in moving))
+    tau_u = q["tracking_time_constant"].uncertainty
+    if tau is not None and tau_u is not None:
+        # the lag credit k tau v is off by k x tau's error at speed v: a few steady readings
+        # at the calibration's low speeds cannot show what the tau's own uncertainty allows
+        per_speed = max(per_speed, TAU_COVERAGE * k * tau_u)
+        method += f"; at least {TAU_COVERAGE:g} x stiffness x tau's standard uncertainty"
     q["deflection_error_per_speed"] = Measurement(per_speed, 0.0, "N s/m", method, len(moving))
 
 
