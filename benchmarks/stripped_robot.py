@@ -5,9 +5,10 @@ frozen force sensors on both.
     python benchmarks/stripped_robot.py [--seeds 5] [--sections stripped,dead_sensor]
         [--out benchmarks/results/stripped_robot.json]
 
-Profiles: one calibration (control.calibrate.calibrate, default settings) per robot and task,
-on the task's preset object (not randomized), seed 0, through an adapter exposing only the
-required members: the profile a user would make once per robot and grasp. With `--fixture
+Profiles: one calibration (control.calibrate.calibrate, default settings, pushing in the
+task's workplane as `cap calibrate` does) per robot and task, on the task's preset object (not
+randomized), seed 0, through an adapter exposing only the required members: the profile a
+user would make once per robot and grasp. With `--fixture
 ROBOT=TASK`, one calibration of ROBOT holding TASK's object serves every task (a user who
 calibrates once per robot, on an object where every quantity can be measured).
 
@@ -169,8 +170,10 @@ def profiles(
         for task in TASKS:
             fixture = fixtures.get(robot, task)
             if (robot, fixture) not in out:
-                _task, sim = grasped(RunSpec(task=fixture, robot=robot, seed=0))
-                out[(robot, fixture)] = calibrate(RequiredOnly(sim), name=f"{robot} / {fixture}")
+                task_cfg, sim = grasped(RunSpec(task=fixture, robot=robot, seed=0))
+                out[(robot, fixture)] = calibrate(
+                    RequiredOnly(sim), f"{robot} / {fixture}", task_cfg.workplane_normal
+                )
             out[(robot, task)] = out[(robot, fixture)]
     return out
 

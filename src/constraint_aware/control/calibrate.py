@@ -1030,11 +1030,12 @@ def _deflection_error(
         return
     static = max(0.0, max(still))
     q["deflection_error"] = Measurement(static, 0.0, "N", method, len(still))
-    if not moving:
+    if not moving or tau is None:
+        why = "the hand never moved at a steady speed during the pushes"
+        if tau is None:  # the whole lag k tau v then reads as deflection, unbounded in speed
+            why = "the tracking time constant is unmeasured: no lag model to bound at speed"
         q["deflection_error_per_speed"] = Measurement.unmeasured(
-            "deflection_error_per_speed",
-            "the hand never moved at a steady speed during the pushes",
-            method,
+            "deflection_error_per_speed", why, method
         )
         return
     per_speed = max(0.0, max((e - static) / v for e, v in moving))
