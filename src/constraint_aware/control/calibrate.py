@@ -928,20 +928,16 @@ def _time_constant(profile: RobotProfile, pushes: list[Push], period: float) -> 
         "impedance m x'' = k (s - x) - c x' - R (R from the wrist reading): tau = c / k"
     )
     q = profile.quantities
-    # a free push; else a soft one (the hand moved against a rising resistance R, which the
-    # model takes from the wrist reading)
-    free = [p for p in pushes if p.kind == "free"] or [p for p in pushes if p.kind == "soft"]
+    free = [p for p in pushes if p.kind == "free"]
     k = q["stiffness"].value
     if not free:
         q["tracking_time_constant"] = Measurement.unmeasured(
             "tracking_time_constant",
-            "no free or soft direction: every push met the object; tau needs a direction the "
-            "hand can move in",
+            "no free direction: every push met the object or stayed soft; tau needs a "
+            "direction the hand can move in",
             method,
         )
         return
-    if free[0].kind == "soft":
-        method += " (on a soft push: no direction was free)"
     if k is None:
         q["tracking_time_constant"] = Measurement.unmeasured(
             "tracking_time_constant",
