@@ -553,8 +553,8 @@ def _pushes(
 ) -> list[Push]:
     """Staircase pushes until two blocked directions and a free one are known (module
     docstring), in the order e1, e2, -e1, -e2 (e3, -e3 without a workplane): the stiffness
-    and a free direction first; the opposite of a free direction is skipped once a free one
-    is known."""
+    and a free direction first; the opposite of a free direction is skipped once a free and a
+    blocked one are known (before that it may be the blocked one the stiffness needs)."""
     axes = push_directions(4, normal)
     if normal is None:  # the six world axes as +x, -x, +y, -y, +z, -z
         axes = axes[0::2] + axes[1::2]
@@ -566,7 +566,7 @@ def _pushes(
         if blocked >= 2 and free:
             break
         opposite = next((p for p in pushes if float(p.direction @ u) < -0.99), None)
-        if opposite is not None and opposite.kind != "blocked" and free:
+        if opposite is not None and opposite.kind != "blocked" and free and blocked:
             continue
         if session.remaining < MIN_PUSH_PERIODS:
             profile.notes.append(
