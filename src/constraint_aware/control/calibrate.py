@@ -26,22 +26,31 @@ The phases (one reading per control period throughout):
    - the setpoint reaches `travel_limit`: soft (neither).
    The setpoint then goes back to where it started, at once after a blocked push and in
    `return_periods` equal steps after a free one, and holds until the hand settles. The
-   opposite of a direction is pushed only when that direction was blocked (a judged pair);
-   pushing stops once two blocked directions and a free one are known, or when the budget
-   (`max_periods`) would not leave room for another push. What is left of the budget is
-   spent holding at the start.
+   opposite of a free or soft direction is skipped once a free and a blocked direction are
+   known (before that it may be the blocked one the stiffness needs); pushing stops once
+   two blocked directions and a free one are known, or when the budget (`max_periods`)
+   would not leave room for another push. What is left of the budget is spent holding at
+   the start.
 3. The quantities:
    - force noise sigma: the readings' spread about a straight line per axis (a drifting
      reading is not noise), pooled over the rest before the pushes and the rest after them
      (when the two spreads agree within POOL_RATIO);
      the dead band is `deadband.threshold_from_noise(sigma)`;
-   - stiffness k: the arm is a spring at the tool point, F = F0 - k stretch with the
-     stretch = commanded - measured position; F0 holds what the stretch does not explain (a
-     grasp's preload, an arm's joint friction fed forward), so k = |F_B - F_A| /
-     |stretch_B - stretch_A| (workplane components), not |F| / |stretch|; the mean over the
-     blocked pushes whose hand had settled at both levels. Where the object gave way under
-     every push (the hand still moved), from those, with tau v (the arm's damping at the
-     hand's velocity v) taken off each stretch;
+   - stiffness k: what the controller's step force k x step means, the force one setpoint
+     step adds against a blocked direction: k = |F_B - F_A| / |setpoint_B - setpoint_A|
+     (workplane components; each level read the period after its stair, when the
+     controller reads what its step did), the mean over the blocked pushes whose hand had
+     settled at both levels; each direction's value is noted (the arms are anisotropic).
+     Not |F| / |setpoint| at one level: the force at a level also holds what the step does
+     not explain (a grasp's preload, an arm's joint friction fed forward). Where the object
+     gave way under every push (the hand still moved), the setpoint's step is shared with
+     the object's motion: k is then the arm's spring, |dF| over the stretch (commanded -
+     measured position) with tau v (the arm's damping at the hand's velocity v) taken off;
+   - deflection error: the executor's deflection model (k x the hand's deflection from its
+     target, tau v credited along its motion: control.lag) against the read force over every
+     push reading: its largest excess with the hand at rest, and per unit speed while the
+     hand moved steadily, at least three standard uncertainties of tau times k
+     (control.sensor_health's dead-sensor test);
    - grasp play: `control.probe.grasp_play` on the (A, B) pairs, the hand's travel against
      the force extrapolated to zero force;
    - sensor convention: `control.probe`'s own verdict on the level-A pushes (the median
@@ -52,7 +61,9 @@ The phases (one reading per control period throughout):
      the force the object resists with (from the wrist reading). The two parameters m / k
      and c / k are fitted to the measured positions by least squares on the exact
      discretization of that model; tau = c / k, the lag per unit speed (the Robot protocol:
-     a tool following a setpoint at speed v trails it by tau v).
+     a tool following a setpoint at speed v trails it by tau v). Without a free push, on a
+     soft one (the hand moved against a rising resistance). A fit whose standard
+     uncertainty exceeds TAU_RELATIVE_UNCERTAINTY of tau leaves it unmeasured.
 
 Safety: every reading is checked (finite force and poses, not stale, |F - F_rest| within
 `force_limit`); no setpoint is ever commanded further than `travel_limit` from where the
@@ -136,6 +147,9 @@ TOUCH_SIGMAS = 5.0
 SAFE_SHARE = 0.8
 #: Periods kept in the budget for levels A and B of a push that met the object.
 RESERVE_PERIODS = 4
+#: tau is unmeasured when the fit's standard uncertainty exceeds this share of it (the
+#: tolerance tau is meant to within: a wider fit did not determine it).
+TAU_RELATIVE_UNCERTAINTY = 0.2
 #: The deflection error per speed is at least this many standard uncertainties of tau times
 #: the stiffness (the coverage of a 3-sigma bound).
 TAU_COVERAGE = 3.0
@@ -928,16 +942,20 @@ def _time_constant(profile: RobotProfile, pushes: list[Push], period: float) -> 
         "impedance m x'' = k (s - x) - c x' - R (R from the wrist reading): tau = c / k"
     )
     q = profile.quantities
-    free = [p for p in pushes if p.kind == "free"]
+    # a free push; else a soft one (the hand moved, against a resistance R the model takes
+    # from the wrist reading)
+    free = [p for p in pushes if p.kind == "free"] or [p for p in pushes if p.kind == "soft"]
     k = q["stiffness"].value
     if not free:
         q["tracking_time_constant"] = Measurement.unmeasured(
             "tracking_time_constant",
-            "no free direction: every push met the object or stayed soft; tau needs a "
-            "direction the hand can move in",
+            "no free or soft direction: every push met the object; tau needs a direction the "
+            "hand can move in",
             method,
         )
         return
+    if free[0].kind == "soft":
+        method += " (a soft push: no direction was free)"
     if k is None:
         q["tracking_time_constant"] = Measurement.unmeasured(
             "tracking_time_constant",
@@ -961,6 +979,15 @@ def _time_constant(profile: RobotProfile, pushes: list[Push], period: float) -> 
         )
         return
     tau, tau_u, zeta, rms = fit
+    if not tau_u <= TAU_RELATIVE_UNCERTAINTY * tau:  # also catches NaN
+        q["tracking_time_constant"] = Measurement.unmeasured(
+            "tracking_time_constant",
+            f"the fit left tau {tau:.3g} s with a standard uncertainty of {tau_u / tau:.0%}, "
+            f"above {TAU_RELATIVE_UNCERTAINTY:.0%}: the push did not determine it",
+            method,
+            len(readings),
+        )
+        return
     span = float(np.ptp(position))
     q["tracking_time_constant"] = Measurement(
         tau,

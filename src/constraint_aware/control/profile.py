@@ -37,8 +37,8 @@ QUANTITIES: dict[str, tuple[str, str]] = {
     "force_offset_z": ("N", "z component of the wrist force reading at rest"),
     "stiffness": (
         "N/m",
-        "the arm's translational stiffness k at the tool point as the wrist sensor sees it "
-        "(the step force is k times the step length)",
+        "the force per metre of setpoint step against a blocked direction at the tool point, "
+        "as the wrist sensor reads it (the step force is k times the step length)",
     ),
     "tracking_time_constant": (
         "s",
