@@ -855,6 +855,17 @@ def _play(
     play = grasp_play(shallow, deep, probe_cfg.min_force)
     assert play is not None
     spread = float(np.std(plays, ddof=1)) / math.sqrt(len(plays)) if len(plays) > 1 else 0.0
+    if play > 0 and spread >= play:
+        # the directions disagree as much as the play itself: one direction's travel is the
+        # object giving way under the push (a crank turning), not play in the grasp
+        q["grasp_play"] = Measurement.unmeasured(
+            "grasp_play",
+            f"the blocked directions disagree ({', '.join(f'{x * 1000:.2f}' for x in plays)} "
+            "mm): the standard uncertainty reaches the play itself",
+            play_method,
+            len(plays),
+        )
+        return
     q["grasp_play"] = Measurement(
         play, spread, "m", play_method + f"; the median over {len(plays)}", len(plays)
     )
