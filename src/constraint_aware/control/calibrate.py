@@ -855,7 +855,7 @@ def _play(
     play = grasp_play(shallow, deep, probe_cfg.min_force)
     assert play is not None
     spread = float(np.std(plays, ddof=1)) / math.sqrt(len(plays)) if len(plays) > 1 else 0.0
-    if play > 0 and spread >= play:
+    if play > 0 and spread >= play * (1.0 - 1e-9):  # equal when one direction reads zero
         # the directions disagree as much as the play itself: one direction's travel is the
         # object giving way under the push (a crank turning), not play in the grasp
         q["grasp_play"] = Measurement.unmeasured(
