@@ -407,7 +407,8 @@ def tool_point_stiffness(robot: str, stiffness: float, task: str) -> dict[str, A
     """The effective tool-point stiffness with simulator privileges, at the calibration's force
     levels: the object locked, the noise-free wrist force read (`true_wrench`), static pushes
     from rest in the four workplane directions. In each direction the setpoint steps out by
-    CONTACT_STEP (each held SEARCH_PERIODS periods) until |dF| from rest reaches the
+    CONTACT_STEP (each held SEARCH_PERIODS periods) until |dF| from rest (read again before
+    each direction) reaches the
     calibration's contact_force (none within CONTACT_TRAVEL: not blocked, the hook's open
     side); that setpoint, held SETTLE_PERIODS periods, is level A; level B is one step beyond
     it sized from the last search step's slope to add push_force - contact_force, held
@@ -437,8 +438,10 @@ def tool_point_stiffness(robot: str, stiffness: float, task: str) -> dict[str, A
         return float(np.linalg.norm(v - (v @ normal) * normal))
 
     directions: list[dict[str, Any]] = []
-    rest = hold_at(home.position, SETTLE_PERIODS)[-1][0]
     for u in push_directions(4, normal):
+        # the rest force read again before each direction: a grasp that stays wedged after a
+        # push (the hook on the pole) keeps a force the next push must not count
+        rest = hold_at(home.position, SETTLE_PERIODS)[-1][0]
         depth, df = 0.0, 0.0
         while depth < CONTACT_TRAVEL:
             # a quarter of the way to contact_force at the nominal gain, at least CONTACT_STEP
