@@ -30,8 +30,9 @@ sigma around the mean reading over the F_d hold: a dead sensor's tare), "noise_a
 level), "jitter" (the last reading held with 1e-9 N of
 jitter), "frozen" (the last reading held exactly); with the profile, with and without the
 robot's translational_stiffness report; and without a profile for contrast. The true force is
-the simulator's noise-free wrench minus its mean over the F_d hold. Must-show: no true |F|
-above the force limit after any period, and no `success` on a dead sensor.
+the simulator's noise-free wrench minus its mean over the F_d hold; each run records its peak
+over the run and after the failure. Must-show: no true |F| above the force limit after any
+period, and no `success` on a dead sensor.
 Results JSON through bench.provenance.write_results.
 """
 

@@ -30,12 +30,11 @@ Where each value comes from (`resolve_robot_values`), first that has it:
   stiffness, tau and measured deflection error, together or not at all.
 
 A robot's report of a member the Robot protocol documents (`translational_stiffness`,
-`tracking_time_constant`) ranks above the profile: it is the arm controller's own value, and
-measured against the effective stiffness at the tool point (the object locked, static
-pushes: benchmarks/calibration.py --tool-point) the reports of both simulated robots are as
-close as the calibration's estimate or closer (docs/design/calibration.md). The profile
-supplies what the robot does not report, which is what makes a robot with only the required
-members whole; the record notes both values when they differ in source.
+`tracking_time_constant`) ranks above the profile: it is the arm controller's own value,
+which a robot that reports it is trusted to mean (how each compares with the force per
+blocked setpoint step: docs/design/calibration.md). The profile supplies what the robot does
+not report, which is what makes a robot with only the required members whole; the record
+notes both values when they differ in source.
 """
 
 from __future__ import annotations
