@@ -18,8 +18,8 @@ the canonical JSON, so NaN compares equal to NaN; where not, the differing paths
 time of the bench's side process (the rendering sections) is reported apart.
 
 With `--scaling`, also the machine's own ceiling for the sweeps: the full bench's suite runs
-(`experiments.headline_specs`, 400 runs) on a process pool of 1 and then 2 workers, nothing else in the
-bench: wall time, the runs' summed CPU time, and the speedup. A speedup below 2 with the
+(`experiments.headline_specs`, 400 runs) on a process pool of 1 and then 2 workers, nothing
+else of the bench: wall time, the runs' summed CPU time, and the speedup. A speedup below 2 with the
 summed CPU time grown by the same factor means each run is slower while both cores work (the
 cores share caches and memory bandwidth), which no scheduling recovers.
 """
