@@ -149,7 +149,7 @@ def episode(task: str, robot: str, policy: ConstraintAwarePolicy) -> dict[str, f
         finally:
             control_cpu.append(time.process_time() - start)
 
-    executor_module.Executor.run = timed_run  # type: ignore[method-assign]
+    executor_module.Executor.run = timed_run  # type: ignore[method-assign,assignment]
     try:
         wall, cpu = time.perf_counter(), time.process_time()
         record, sim = run(spec, policy=policy, executor_overrides=QUASI_STATIC_GUARDS_OFF)
