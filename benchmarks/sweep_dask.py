@@ -14,26 +14,38 @@ after the other: the load average is recorded, and on a loaded machine the share
 not their number, sets it) and by the CPU critical path (this process's CPU time plus the
 busiest worker's: the wall time on otherwise idle cores, each worker on its own); and whether
 every results.json is the first one's except for the wall times and the worker count (text of
-the canonical JSON, so NaN compares equal to NaN; where not, the differing paths).
+the canonical JSON, so NaN compares equal to NaN; where not, the differing paths). The CPU
+time of the bench's side process (the rendering sections) is reported apart.
+
+With `--scaling`, also the machine's own ceiling for the sweeps: the full bench's suite runs
+(`experiments.headline_specs`, 400 runs) on a process pool of 1 and then 2 workers, nothing
+else of the bench: wall time, the runs' summed CPU time, and the speedup. A speedup below 2 with the
+summed CPU time grown by the same factor means each run is slower while both cores work (the
+cores share caches and memory bandwidth), which no scheduling recovers.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import resource
 import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 from distributed import Client, LocalCluster
 
+from constraint_aware.bench.experiments import BenchConfig, headline_specs
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.run import RESULTS, run_bench
+from constraint_aware.bench.sweep import _run_one
+from constraint_aware.sim.embodiment import DEFAULT_ROBOT
 
 DEFAULT_OUT = Path(__file__).parent / "results" / "sweep_dask.json"
 
@@ -89,14 +101,19 @@ def one_bench(tmp: Path, workers: int, dask: bool) -> dict[str, Any]:
             client.wait_for_workers(workers)
             before = client.run(time.process_time)
             cpu = time.process_time()
+            children = resource.getrusage(resource.RUSAGE_CHILDREN)
             run_bench(tmp / name, quick=True, scheduler=cluster.scheduler_address)
             entry["main_cpu_s"] = time.process_time() - cpu
+            done = resource.getrusage(resource.RUSAGE_CHILDREN)  # the side process, joined
+            entry["side_process_cpu_s"] = (
+                done.ru_utime + done.ru_stime - children.ru_utime - children.ru_stime
+            )
             after = client.run(time.process_time)
         entry["worker_cpu_s"] = sorted(after[w] - before[w] for w in after)
     else:
         cpu = time.process_time()
         children = resource.getrusage(resource.RUSAGE_CHILDREN)
-        run_bench(tmp / name, quick=True, workers=workers)
+        run_bench(tmp / name, quick=True, workers=workers)  # pool and side process: children
         entry["main_cpu_s"] = time.process_time() - cpu
         done = resource.getrusage(resource.RUSAGE_CHILDREN)
         entry["workers_total_cpu_s"] = (
@@ -109,11 +126,40 @@ def one_bench(tmp: Path, workers: int, dask: bool) -> dict[str, Any]:
     return entry
 
 
+def _quiet() -> None:
+    logging.disable(logging.WARNING)  # the runs' missing-input lines, once per run
+
+
+def _timed_run(spec: Any) -> float:
+    """One run's CPU time [s] in the worker that ran it (as the bench runs it)."""
+    start = time.process_time()
+    _run_one((spec, False, None))
+    return time.process_time() - start
+
+
+def sweep_scaling(counts: list[int]) -> list[dict[str, Any]]:
+    """The full bench's suite runs alone on a process pool of each worker count."""
+    specs = headline_specs(BenchConfig.for_mode(False, None, DEFAULT_ROBOT))
+    out = []
+    for n in counts:
+        with ProcessPoolExecutor(max_workers=n, initializer=_quiet) as pool:
+            list(pool.map(_timed_run, specs[: 2 * n]))  # warm: the workers' model caches
+            start = time.perf_counter()
+            cpu = list(pool.map(_timed_run, specs))
+            wall = time.perf_counter() - start
+        out.append({"workers": n, "runs": len(specs), "wall_s": wall, "runs_cpu_s_total": sum(cpu)})
+    for entry in out:
+        entry["speedup_over_first"] = out[0]["wall_s"] / entry["wall_s"]
+        entry["runs_cpu_over_first"] = entry["runs_cpu_s_total"] / out[0]["runs_cpu_s_total"]
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--workers", default="1,2", help="worker counts, comma-separated")
     parser.add_argument("--local", action="store_true", help="also the local process pool")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    parser.add_argument("--scaling", action="store_true", help="also the sweeps alone")
     parser.add_argument("--single", help=argparse.SUPPRESS)  # the subprocess: "dask-2", ...
     args = parser.parse_args()
     if args.single is not None:
@@ -155,6 +201,8 @@ def main() -> None:
     result["identical_results_json_except_wall_time_and_workers"] = not any(
         b["differences_from_first"] for b in result["benches"]
     )
+    if args.scaling:
+        result["sweep_alone"] = sweep_scaling(counts)
     write_results(args.out, result)
     print(json.dumps(result, indent=2))
 

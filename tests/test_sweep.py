@@ -146,7 +146,7 @@ def test_run_bench_sends_its_sweeps_to_the_scheduler(
 
     seen: dict[str, Any] = {}
 
-    def sweeps_only(out: str | Path, cfg: Any, policy: Any, source: Any, skipped: Any) -> Path:
+    def sweeps_only(out: str | Path, cfg: Any, policy: Any, source: Any, *_: Any) -> Path:
         seen["executor"] = type(sweep._CURRENT_EXECUTOR.get()).__name__
         seen["workers"] = cfg.workers
         seen["runs"] = run_many(specs[:2], quiet=True, policy=policy)

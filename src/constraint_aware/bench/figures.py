@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from concurrent.futures import Executor
 from pathlib import Path
 from typing import Any
 
@@ -254,21 +256,27 @@ def fig_ablation(out: Path, results: dict[str, Any]) -> str:
     return _finish(fig, out / "fig_ablation.png")
 
 
-def draw_all(out: Path, results: dict[str, Any]) -> dict[str, str]:
-    """Every figure the results allow; returns {figure key: file name}."""
-    figs = {
-        "learning": fig_learning(out, results),
-        "fig6": fig6(out, results),
-        "fig78": fig78(out, results),
-        "fig9": fig9(out, results),
-        "fig11": fig11(out, results),
-        "fig12": fig12(out, results),
-        "peak_forces": fig_peak_forces(out, results),
+def draw_all(
+    out: Path, results: dict[str, Any], executor: Executor | None = None
+) -> dict[str, str]:
+    """Every figure the results allow, each drawn by its own call on `executor` (None: one
+    after the other here); returns {figure key: file name}."""
+    drawers: dict[str, Callable[[Path, dict[str, Any]], str]] = {
+        "learning": fig_learning,
+        "fig6": fig6,
+        "fig78": fig78,
+        "fig9": fig9,
+        "fig11": fig11,
+        "fig12": fig12,
+        "peak_forces": fig_peak_forces,
     }
     if "heatmap" in results:
-        figs["heatmap"] = fig_heatmap(out, results)
+        drawers["heatmap"] = fig_heatmap
     if "sensitivity" in results:
-        figs["sensitivity"] = fig_sensitivity(out, results)
+        drawers["sensitivity"] = fig_sensitivity
     if "ablation" in results:
-        figs["ablation"] = fig_ablation(out, results)
-    return figs
+        drawers["ablation"] = fig_ablation
+    if executor is None:
+        return {key: draw(out, results) for key, draw in drawers.items()}
+    futures = {key: executor.submit(draw, out, results) for key, draw in drawers.items()}
+    return {key: future.result() for key, future in futures.items()}

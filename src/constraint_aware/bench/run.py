@@ -13,9 +13,11 @@ import hashlib
 import json
 import logging
 import math
+import multiprocessing
 import sys
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import Executor, Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,6 +36,7 @@ from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.report import write_report
 from constraint_aware.bench.sweep import (
     SUITE_OFFSET_RANGE,
+    InProcessExecutor,
     available_cpus,
     dask_executor,
     local_pool,
@@ -317,14 +320,46 @@ def run_bench(
         on_skip(line)
     with _each_warning_once():
         if scheduler is None:  # one pool for every section: its workers keep their caches
-            with local_pool(workers) as pool, use_executor(pool):
-                return _run_bench(out, cfg, loaded, policy, skipped)
+            with (
+                local_pool(workers) as pool,
+                use_executor(pool),
+                _side_process(cfg.workers or available_cpus()) as side,
+            ):
+                return _run_bench(out, cfg, loaded, policy, skipped, pool, side)
         with (
             dask_executor(scheduler, local_workers=workers) as (executor, threads),
             use_executor(executor),
+            _side_process(2) as side,
         ):
             cfg = dataclasses.replace(cfg, workers=threads)
-            return _run_bench(out, cfg, loaded, policy, skipped)
+            # the figures are files here: drawn on this machine, not on the cluster
+            return _run_bench(out, cfg, loaded, policy, skipped, side, side)
+
+
+@contextlib.contextmanager
+def _side_process(workers: int) -> Iterator[Executor]:
+    """Where the sections that render run (the paper's snapshots, the end-to-end sequences'
+    depth camera), beside the sweeps: one process started fresh (spawn), since offscreen
+    rendering hangs in a process forked from one that has rendered; this process itself
+    when the bench has one worker."""
+    if workers <= 1:
+        yield InProcessExecutor()
+        return
+    with ProcessPoolExecutor(
+        max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=_quiet
+    ) as side:
+        yield side
+
+
+def _quiet() -> None:
+    """The side process's share of `_each_warning_once`."""
+    logging.getLogger("constraint_aware").addFilter(_OncePerMessage())
+
+
+def _timed(fn: Callable[..., Any], *args: Any) -> tuple[Any, float]:
+    """fn(*args) and its wall time [s] (a section run beside the others)."""
+    start = time.perf_counter()
+    return fn(*args), time.perf_counter() - start
 
 
 class _OncePerMessage(logging.Filter):
@@ -362,6 +397,8 @@ def _run_bench(
     policy: ConstraintAwarePolicy,
     source: str | Path | None,
     skipped: dict[str, str],
+    figures_on: Executor,
+    side: Executor,
 ) -> Path:
     start = time.perf_counter()
     quick = cfg.quick
@@ -401,12 +438,15 @@ def _run_bench(
         seconds[section] = now - clock
         clock = now
 
+    # the rendering sections start first, beside the sweeps; their results are placed in the
+    # sections' order when they arrive
+    paper = side.submit(_timed, ex.paper_experiments, out_dir, cfg.render, policy, cfg.robot)
+    end_to_end: Future[tuple[Any, float]] | None = None
+    if "end_to_end" not in skipped:
+        end_to_end = side.submit(_timed, endtoend.bench_section, quick, policy)
     results["learning"] = ex.learning(out_dir, policy, source)
     lap("learning")
-    results["paper"] = _summaries_with_units(
-        ex.paper_experiments(out_dir, cfg.render, policy, cfg.robot)
-    )
-    lap("paper")
+    results["paper"] = None
     table, suite_runs = ex.headline(cfg, policy)
     for row in table.values():
         for cell in row.values():
@@ -423,9 +463,8 @@ def _run_bench(
     all_runs = list(suite_runs)
     results["placement"] = placement.bench_section(quick, policy)
     lap("placement")
-    if "end_to_end" not in skipped:
-        results["end_to_end"] = endtoend.bench_section(quick, policy)
-        lap("end_to_end")
+    if end_to_end is not None:
+        results["end_to_end"] = None
     if not quick:
         heatmap, hm_runs = ex.offset_heatmap(cfg, policy)
         heatmap["full_success_halfwidth_deg"] = _full_success_halfwidth(heatmap)
@@ -446,6 +485,10 @@ def _run_bench(
         policy=policy,
     ).to_dict()
     lap("faults")
+    section, seconds["paper"] = paper.result()
+    results["paper"] = _summaries_with_units(section)
+    if end_to_end is not None:
+        results["end_to_end"], seconds["end_to_end"] = end_to_end.result()
     results["meta"]["section_seconds"] = seconds
     worst = ex.worst_cases(all_runs)
     for w in worst:
@@ -453,12 +496,13 @@ def _run_bench(
     results["worst_cases"] = worst
     results["meta"]["wall_time_s"] = time.perf_counter() - start
     write_results(out_dir / RESULTS, results)
-    return replot(out_dir)
+    return replot(out_dir, figures_on)
 
 
-def replot(out: str | Path) -> Path:
-    """Redraw every figure and the report from DIR/results.json (nothing is re-run)."""
+def replot(out: str | Path, executor: Executor | None = None) -> Path:
+    """Redraw every figure and the report from DIR/results.json (nothing is re-run); the
+    figures on `executor` when given (the bench's pool), else one after the other here."""
     out_dir = Path(out)
     results = load_results(out_dir)
-    figures = draw_all(out_dir, results)
+    figures = draw_all(out_dir, results, executor)
     return write_report(out_dir, results, figures)
