@@ -91,6 +91,13 @@ class SequenceConfig:
     contact_zone: float = 0.02  # [m] contact within this of the grasp counts as arrival
     retreat: float = 0.10  # [m] back along the approach after release
     reach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.06))
+    # a grasp with play (the hook around a bar) takes it up before the manipulation: slowly
+    # along the demonstrated initial direction until the handle bears on the hand, at most
+    # `take_up_travel`, then the wrist rests there
+    take_up: MoveConfig = field(
+        default_factory=lambda: MoveConfig(speed=0.01, contact_limit=1.0, position_tolerance=0.002)
+    )
+    take_up_travel: float = 0.005  # [m]
     approach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.03))
     leave: MoveConfig = field(
         default_factory=lambda: MoveConfig(speed=0.05, contact_limit=6.0, position_tolerance=0.02)
@@ -387,8 +394,11 @@ def _run_phases(
     else:  # the hand stays at the grasp while the fingers close around the handle
         target = grasp
     settle = max(1, round(robot.settle_time / robot.control_period))
-    touched = False
-    for rounds in (1, 2):
+
+    def rest(target: Pose) -> bool | None:
+        """Command `target` for `settle` periods: whether the hand touched the handle (None:
+        a reading was not finite)."""
+        touched = False
         for _ in range(settle):
             robot.command_pose(target)
             robot.advance()
@@ -397,12 +407,31 @@ def _run_phases(
                 on_period()
             force = np.asarray(robot.read_wrench().force, dtype=float)
             if not np.all(np.isfinite(force)):
-                return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
+                return None
             touched = touched or bool(robot.grasp_contact())
-        if press > 0 or rounds == 2:
-            break
-        robot.hold()  # no press: the wrist rests where closing left it (no preload)
-        target = robot.commanded_pose()
+        return touched
+
+    touched = rest(target)
+    if touched is not None and press == 0:
+        # the wrist rests where closing left it (no preload) ...
+        robot.hold()
+        touched = rest(robot.commanded_pose())
+        if touched is not None and not robot.grasp_touches(shape):
+            # ... and a grasp with play has it taken up: closing sweeps the handle to one side
+            # of the play, the manipulation's first step would strike it across the rest
+            d0 = unit(np.asarray(fixed.initial_direction, dtype=float))
+            here = robot.commanded_pose()
+            path = straight_line(
+                here, here.moved(cfg.take_up_travel * d0), cfg.take_up, robot.control_period
+            )
+            m = move(phase, path, cfg.take_up, contact_from=0)
+            phase.details["take_up"] = m.outcome
+            if not m.ok:
+                return _fail(robot, record, phase, m.outcome, m.reason)
+            robot.hold()
+            touched = rest(robot.commanded_pose())
+    if touched is None:
+        return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
     # a press stays commanded: the executor starts from the pressing setpoint (as at reset)
     if robot.grasp_touches(shape) and not (touched or robot.grasp_contact()):
         return _fail(robot, record, phase, "no_contact", "the closed hand touches nothing")
@@ -587,24 +616,55 @@ def run_in_simulation(
     on_phase(name, sim) and on_period(sim) observe (scoring, video)."""
     cfg = config or SequenceConfig()
     station = station_for(robot, skill, cfg)
-    sim, adapter = build_world(
-        robot, task, station, np.random.default_rng(seed + 7919), sensor_noise
-    )
-    if world_hook is not None:
-        world_hook(sim)
-    shape, _ = nominal_frame(skill)
-    adapter.start_at_home(shape)
-    adapter.believe(scene_from_skill(skill).task, 0.0)
+    recognizer = recognizer or make_recognizer(cfg.recognizer)
+    notes: list[str] = []
+
+    def world(at: Station) -> tuple[Embodiment, Any]:
+        sim, adapter = build_world(
+            robot, task, at, np.random.default_rng(seed + 7919), sensor_noise
+        )
+        if world_hook is not None:
+            world_hook(sim)
+        shape, _ = nominal_frame(skill)
+        adapter.start_at_home(shape)
+        adapter.believe(scene_from_skill(skill).task, 0.0)
+        return sim, adapter
+
+    def look(sim: Embodiment, at: Station) -> DepthImage:
+        camera = DepthCamera(sim.model, at.camera)
+        try:
+            return camera.capture(sim.data, np.random.default_rng(seed + 104729))
+        finally:
+            camera.close()
+
+    sim, adapter = world(station)
+    image: DepthImage | None = None
+    if station.base is not None:
+        # a robot on a mobile base looks first (the head camera depends on the demonstration
+        # alone) and stands where the perceived grasp, not the demonstrated one, is reachable:
+        # a demonstration locates the handle only to some centimetres
+        image = look(sim, station)
+        try:
+            fixed = corrected_skill(skill, perceive(skill, image, recognizer).recognition)
+            moved = dataclasses.replace(station_for(robot, fixed, cfg), camera=station.camera)
+        except (RecognitionError, CapError) as exc:  # the sequence's phases report it
+            notes.append(f"the base stays where the demonstration puts it: {exc}")
+        else:
+            assert moved.base is not None
+            if not np.allclose(moved.base, station.base):
+                notes.append(
+                    "the base moved from the demonstrated grasp's station to the perceived "
+                    f"one's: {np.round(station.base, 3).tolist()} -> "
+                    f"{np.round(moved.base, 3).tolist()} m"
+                )
+                station = moved
+                sim, adapter = world(station)
     seen: list[DepthImage] = []
 
     def capture() -> DepthImage:
-        camera = DepthCamera(sim.model, station.camera)
-        try:
-            image = camera.capture(sim.data, np.random.default_rng(seed + 104729))
-        finally:
-            camera.close()
-        seen.append(image)
-        return image
+        taken = image if image is not None else look(sim, station)
+        seen.append(taken)
+        return taken
 
     label = {
         "robot": robot,
@@ -616,7 +676,7 @@ def run_in_simulation(
         "start": START_HOME,
         "recognizer": cfg.recognizer if recognizer is None else recognizer.name,
     }
-    record = SequenceRecord(label)
+    record = SequenceRecord(label, notes=notes)
     out = _execute_into(
         record, adapter, capture, skill, controller, policy, recognizer, cfg,
         None if on_phase is None else (lambda name: on_phase(name, sim)),
