@@ -31,6 +31,7 @@ from constraint_aware.sim.jaco import (
     JACO_GRASPS,
     TCP_SITE,
     JacoSim,
+    OscConfig,
     arm_base,
     build_spec,
 )
@@ -206,25 +207,47 @@ class JacoPlanner:
         return float(best)
 
     def solve_ik(
-        self, pose: Pose, near: FloatArray, handle: bool = True, clearance: float | None = None
+        self,
+        pose: Pose,
+        near: FloatArray,
+        handle: bool = True,
+        clearance: float | None = None,
+        margin: float = 0.0,
     ) -> FloatArray:
         """(6,) [rad] joint angles putting the tool at `pose`, clear of the object by at
         least `clearance` [m] (default the planner's; of everything but the handle unless
-        `handle`: a grasp holds it, its fingers reach behind it),
-        nearest (in joint space) to `near`; damped least squares from `near` and from the
-        arm's usual elbow-up seeds. PlanningError when none."""
+        `handle`: a grasp holds it, its fingers reach behind it) and at least `margin` [rad]
+        from every joint limit, nearest (in joint space) to `near`; damped least squares from
+        `near` and from the arm's usual elbow-up seeds. PlanningError when none."""
         seeds = self._seeds(pose, near)
         need = self.config.clearance if clearance is None else clearance
         found: list[FloatArray] = []
         for seed in seeds:
             q = self._ik_from(seed, pose)
-            if q is not None and self.clearance(q, handle) >= need:
+            if q is None or self.limit_margin(q) < margin:
+                continue
+            if self.clearance(q, handle) >= need:
                 found.append(q)
                 if len(found) >= 3:  # enough to choose the nearest from
                     break
         if not found:
-            raise PlanningError("no collision-free joint angles reach the goal pose")
+            raise PlanningError(
+                "no collision-free joint angles reach the goal pose"
+                + (f" {margin:g} rad inside the joint limits" if margin > 0 else "")
+            )
         return min(found, key=lambda q: float(np.sum(_wrapped(q - near) ** 2)))
+
+    def limit_margin(self, q: FloatArray) -> float:
+        """[rad] the least distance of `q` (6,) [rad] from a joint limit (pi: none limited)."""
+        return float(
+            np.min(
+                np.where(
+                    self._limited,
+                    np.minimum(q - self._range[:, 0], self._range[:, 1] - q),
+                    math.pi,
+                )
+            )
+        )
 
     def roomiest_ik(self, pose: Pose) -> FloatArray:
         """(6,) [rad] of the collision-free solutions for `pose` (everything but the handle),
@@ -235,10 +258,7 @@ class JacoPlanner:
             q = self._ik_from(seed, pose)
             if q is None or self.clearance(q, handle=False) < 0.0:
                 continue
-            margin = float(
-                np.min(np.where(self._limited, np.minimum(q - self._range[:, 0],
-                                                          self._range[:, 1] - q), math.pi))
-            )  # fmt: skip
+            margin = self.limit_margin(q)
             if margin > best_margin:
                 best, best_margin = q, margin
         if best is None:
@@ -433,7 +453,11 @@ def choose_base(
     of everything but the handle it holds), and, given `home` (forward, up) [m] from the
     base toward the handle, a home tool pose clear of the object closed and at the motion's
     end; else the first of `BASE_CANDIDATES` that does. CapError when none does. Returns the
-    base (3,) [m] and the placement."""
+    base (3,) [m] and the placement.
+
+    The grasp and the motion must be reached `OscConfig.limit_margin` inside the joint limits:
+    there the controller's joint-limit repulsion starts, and a posture inside it is one the arm
+    does not hold (it stops short of the grasp)."""
     kind = (task.object.joint_type, task.object.handle)
     first = [BASE_PLACEMENT[kind]] if kind in BASE_PLACEMENT else []
     grasp = JacoSim(
@@ -443,15 +467,16 @@ def choose_base(
     pre = grasp.moved(-pre_grasp * approach)
     fractions = (0.0, 0.5, 1.0)
     motion = motion_poses(task, grasp, fractions)
+    margin = OscConfig().limit_margin
     for placement in [*first, *BASE_CANDIDATES]:
         base = arm_base(task, placement)
         planner = JacoPlanner(base)
         try:
             planner.set_object(task)
-            q = planner.solve_ik(pre, facing(base, pre.position))
+            q = planner.solve_ik(pre, facing(base, pre.position), margin=margin)
             for f, pose in zip(fractions, motion, strict=True):
                 planner.set_object(task, f * task.success_progress)
-                q = planner.solve_ik(pose, q, handle=False, clearance=0.0)
+                q = planner.solve_ik(pose, q, handle=False, clearance=0.0, margin=margin)
             if home is not None:
                 tool = home_pose(base, grasp, home)
                 for f in (1.0, 0.0):
