@@ -467,15 +467,12 @@ def _run_phases(
     phase.outcome = "running"
     robot.hold()
     robot.open_hand(shape)
-    for _ in range(settle):
-        robot.command_pose(robot.commanded_pose())
-        robot.advance()
-        phase.periods += 1
-        if on_period is not None:
-            on_period()
-        force = np.asarray(robot.read_wrench().force, dtype=float)
-        if not np.all(np.isfinite(force)):
+    for _ in (1, 2):
+        if rest(robot.commanded_pose()) is None:
             return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
+        # the wrist rests where opening left it: fingers opening around a knob push the hand,
+        # and a retreat from a loaded wrist read the unloading as a contact
+        robot.hold()
     done(phase)
 
     # 7. retreat along the hand's approach axis
@@ -644,21 +641,23 @@ def run_in_simulation(
         # alone) and stands where the perceived grasp, not the demonstrated one, is reachable:
         # a demonstration locates the handle only to some centimetres
         image = look(sim, station)
+        from constraint_aware.sim.reach import reaches_from
+
+        offsets = (cfg.jaco_home_forward, cfg.jaco_home_up)
         try:
             fixed = corrected_skill(skill, perceive(skill, image, recognizer).recognition)
-            moved = dataclasses.replace(station_for(robot, fixed, cfg), camera=station.camera)
-        except (RecognitionError, CapError) as exc:  # the sequence's phases report it
-            notes.append(f"the base stays where the demonstration puts it: {exc}")
-        else:
-            assert moved.base is not None
-            if not np.allclose(moved.base, station.base):
+            if not reaches_from(scene_from_skill(fixed).task, station.base, cfg.pre_grasp, offsets):
+                moved = dataclasses.replace(station_for(robot, fixed, cfg), camera=station.camera)
+                assert moved.base is not None
                 notes.append(
-                    "the base moved from the demonstrated grasp's station to the perceived "
-                    f"one's: {np.round(station.base, 3).tolist()} -> "
+                    "the perceived grasp is out of reach from the demonstration's station: the "
+                    f"base moved {np.round(station.base, 3).tolist()} -> "
                     f"{np.round(moved.base, 3).tolist()} m"
                 )
                 station = moved
                 sim, adapter = world(station)
+        except (RecognitionError, CapError) as exc:  # the sequence's phases report it
+            notes.append(f"the base stays where the demonstration puts it: {exc}")
     seen: list[DepthImage] = []
 
     def capture() -> DepthImage:

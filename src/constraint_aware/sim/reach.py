@@ -447,48 +447,67 @@ def choose_base(
     home: tuple[float, float] | None = None,
 ) -> tuple[FloatArray, tuple[float, float, float]]:
     """Where the Jaco stands for `task` (the object as the robot believes it): the kind's
-    placement (sim.jaco.BASE_PLACEMENT) if from it, clear of the object (as `JacoPlanner`
-    checks), the arm reaches the pre-grasp `pre_grasp` [m] back from the grasp and the grasp
-    at the start, half-way and the end of the motion with the object moved that far (clear
-    of everything but the handle it holds), and, given `home` (forward, up) [m] from the
-    base toward the handle, a home tool pose clear of the object closed and at the motion's
-    end; else the first of `BASE_CANDIDATES` that does. CapError when none does. Returns the
-    base (3,) [m] and the placement.
-
-    The grasp and the motion must be reached `OscConfig.limit_margin` inside the joint limits:
-    there the controller's joint-limit repulsion starts, and a posture inside it is one the arm
-    does not hold (it stops short of the grasp)."""
+    placement (sim.jaco.BASE_PLACEMENT) if from it the arm reaches what `reaches_from`
+    asks, else the first of `BASE_CANDIDATES` that does. CapError when none does. Returns the
+    base (3,) [m] and the placement."""
     kind = (task.object.joint_type, task.object.handle)
     first = [BASE_PLACEMENT[kind]] if kind in BASE_PLACEMENT else []
-    grasp = JacoSim(
-        task, base=arm_base(task, first[0] if first else BASE_CANDIDATES[0])
-    ).grasp_pose()
-    approach = grasp.orientation.apply([0.0, 0.0, 1.0])
-    pre = grasp.moved(-pre_grasp * approach)
-    fractions = (0.0, 0.5, 1.0)
-    motion = motion_poses(task, grasp, fractions)
-    margin = OscConfig().limit_margin
+    grasp = _grasp(task)
     for placement in [*first, *BASE_CANDIDATES]:
         base = arm_base(task, placement)
-        planner = JacoPlanner(base)
-        try:
-            planner.set_object(task)
-            q = planner.solve_ik(pre, facing(base, pre.position), margin=margin)
-            for f, pose in zip(fractions, motion, strict=True):
-                planner.set_object(task, f * task.success_progress)
-                q = planner.solve_ik(pose, q, handle=False, clearance=0.0, margin=margin)
-            if home is not None:
-                tool = home_pose(base, grasp, home)
-                for f in (1.0, 0.0):
-                    planner.set_object(task, f * task.success_progress)
-                    planner.solve_ik(tool, facing(base, tool.position))
-        except PlanningError:
-            continue
-        return base, placement
+        if reaches_from(task, base, pre_grasp, home, grasp):
+            return base, placement
     raise CapError(
         f"the Jaco reaches the demonstrated motion of the {task.name} from none of "
         f"{len(BASE_CANDIDATES) + len(first)} base placements"
     )
+
+
+def _grasp(task: TaskConfig) -> Pose:
+    """The Jaco's tool pose at `task`'s grasp (its hand mount, from the kind's placement)."""
+    kind = (task.object.joint_type, task.object.handle)
+    return JacoSim(
+        task, base=arm_base(task, BASE_PLACEMENT.get(kind, BASE_CANDIDATES[0]))
+    ).grasp_pose()
+
+
+def reaches_from(
+    task: TaskConfig,
+    base: FloatArray,
+    pre_grasp: float = 0.10,
+    home: tuple[float, float] | None = None,
+    grasp: Pose | None = None,
+) -> bool:
+    """Whether the Jaco standing at `base` (3,) [m] reaches `task`'s object as the robot
+    believes it: clear of the object (as `JacoPlanner` checks), the pre-grasp `pre_grasp` [m]
+    back from the grasp, and the grasp at the start, half-way and the end of the motion with
+    the object moved that far (clear of everything but the handle it holds), and, given
+    `home` (forward, up) [m] from the base toward the handle, a home tool pose clear of the
+    object closed and at the motion's end. `grasp`: the tool pose at the grasp, if known.
+
+    The pre-grasp and the motion must be reached `OscConfig.limit_margin` inside the joint
+    limits: there the controller's joint-limit repulsion starts, and a posture inside it is
+    one the arm does not hold (it stops short of the grasp)."""
+    grasp = grasp or _grasp(task)
+    approach = grasp.orientation.apply([0.0, 0.0, 1.0])
+    pre = grasp.moved(-pre_grasp * approach)
+    fractions = (0.0, 0.5, 1.0)
+    margin = OscConfig().limit_margin
+    planner = JacoPlanner(base)
+    try:
+        planner.set_object(task)
+        q = planner.solve_ik(pre, facing(base, pre.position), margin=margin)
+        for f, pose in zip(fractions, motion_poses(task, grasp, fractions), strict=True):
+            planner.set_object(task, f * task.success_progress)
+            q = planner.solve_ik(pose, q, handle=False, clearance=0.0, margin=margin)
+        if home is not None:
+            tool = home_pose(base, grasp, home)
+            for f in (1.0, 0.0):
+                planner.set_object(task, f * task.success_progress)
+                planner.solve_ik(tool, facing(base, tool.position))
+    except PlanningError:
+        return False
+    return True
 
 
 def home_pose(base: FloatArray, grasp: Pose, home: tuple[float, float]) -> Pose:
