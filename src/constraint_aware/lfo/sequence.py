@@ -56,7 +56,7 @@ from constraint_aware.control.executor import Executor
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import request_hold
-from constraint_aware.errors import CapError, UnknownNameError
+from constraint_aware.errors import CapError, UnknownNameError, check_number
 from constraint_aware.geometry import FloatArray, unit
 from constraint_aware.lfo.infer import SkillParameters
 from constraint_aware.lfo.manipulation import SENSOR_NOISE, goal_label, manipulation_setup
@@ -110,6 +110,12 @@ class SequenceConfig:
     recognizer: str = "cnn"
     profile: RobotProfile | None = None  # the robot's calibration, for the manipulation
     strict_inputs: bool = False  # refuse to manipulate when a stage's input is missing
+
+    def __post_init__(self) -> None:
+        for name in ("pre_grasp", "overshoot", "contact_zone", "retreat", "take_up_travel",
+                     "hook_home_back", "hook_home_up", "jaco_home_up"):  # fmt: skip
+            check_number(f"SequenceConfig.{name}", getattr(self, name), low=0.0, unit="m")
+        check_number("SequenceConfig.jaco_home_forward", self.jaco_home_forward, unit="m")
 
 
 @dataclass
