@@ -119,13 +119,17 @@ class JacoPlanner:
         self.config = config or PlannerConfig()
         self.fingers = 0.2  # [rad] the fingers' angle in the planning model (the hand's shape)
         self._model: mujoco.MjModel | None = None
+        self._task: TaskConfig | None = None
         self._joint = 0.0
 
     def set_object(self, task: TaskConfig, joint_position: float = 0.0) -> None:
         """The object as the robot believes it: `task`'s object (built from the demonstration)
         with its joint at `joint_position` [m or rad]."""
-        self._model = build_spec(task, self.base, solid_for_arms=True).compile()
         self._joint = float(joint_position)
+        if task == self._task:  # the same object moved: its model stands
+            return
+        self._model = build_spec(task, self.base, solid_for_arms=True).compile()
+        self._task = task
         m = self._model
         self._arm_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in ARM_JOINTS])
         self._arm_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in ARM_JOINTS])
