@@ -17,17 +17,21 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
    `press_depth` on; the wrist then rests where it settled (no preload) and the hand must
    report contact, unless it holds the handle with play (`grasp_touches`: the hook hand's
    bar, touched only when the hand pulls; a bar outside the hook shows in the manipulation
-   as the executor's lost-contact stop).
+   as the executor's lost-contact stop). A grasp with play has it taken up
+   (`SequenceConfig.take_up`): closing leaves the handle on the far side of the play, and the
+   manipulation's first step would strike it.
 5. manipulate: the executor (control/executor.py) with the corrected skill's estimates in
    charge, exactly as `lfo.execute` runs it, without the simulator's task monitor.
 6. release: the wrist rests where it is, the hand opens to the shape it came in with (a way
-   out known to be free).
+   out known to be free); a hand that pressed (plate, knob) rests again where opening pushed
+   it.
 7. retreat: back along the hand's approach axis by `retreat`.
 8. home: back to the home pose (the Jaco around the object, which it believes moved as far as
    its own hand did).
 
 `run_in_simulation` builds the simulated world (the true object, the robot at the station
-the demonstration implies, the head camera) and runs `execute_sequence` on it; only the
+the demonstration implies, the head camera; a robot on a base moves it when the grasp it
+perceives from there is out of reach) and runs `execute_sequence` on it; only the
 `SequenceRobot` adapter (no ground truth through it) and the camera reach the pipeline.
 `on_phase(name)` is called after each phase and `on_period()` after every control period,
 for scoring and rendering outside the pipeline.
@@ -473,12 +477,15 @@ def _run_phases(
     phase.outcome = "running"
     robot.hold()
     robot.open_hand(shape)
-    for _ in (1, 2):
+    if rest(robot.commanded_pose()) is None:
+        return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
+    if press > 0:
+        # a hand that pressed stays on the handle's face: the fingers opening around it push
+        # the hand, and a retreat from the loaded wrist read the unloading as a contact; the
+        # wrist rests where it was pushed
+        robot.hold()
         if rest(robot.commanded_pose()) is None:
             return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
-        # the wrist rests where opening left it: fingers opening around a knob push the hand,
-        # and a retreat from a loaded wrist read the unloading as a contact
-        robot.hold()
     done(phase)
 
     # 7. retreat along the hand's approach axis
@@ -614,8 +621,10 @@ def run_in_simulation(
     world_hook: Callable[[Embodiment], None] | None = None,
 ) -> SimulatedSequence:
     """The sequence on the simulated `task` (the truth: only the world is built from it).
-    The station comes from the skill; the camera's noise and the force sensor's from `seed`.
-    world_hook(sim) runs once the world is built (tests inject faults through it);
+    The station comes from the skill (a base moved when the grasp perceived from there is out
+    of reach: the world is then built again, before anything moved); the camera's noise and
+    the force sensor's from `seed`. world_hook(sim) runs on each world built (tests inject
+    faults through it);
     on_phase(name, sim) and on_period(sim) observe (scoring, video)."""
     cfg = config or SequenceConfig()
     station = station_for(robot, skill, cfg)
