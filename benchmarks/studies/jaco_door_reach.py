@@ -2,7 +2,7 @@
 the base placements that reach the whole demonstrated arc.
 
     nice -n 10 python benchmarks/studies/jaco_door_reach.py [--radii 0.4,0.5,...,1.0]
-        [--angles 45,60,75,90] [--out FILE.json]
+        [--angles 45,60,75,90] [--senses 1,-1] [--out FILE.json]
 
 A door with its handle at 0.9 m, hinged either side, each radius [m] and opening angle
 [deg]; for each, `sim.reach.reaches_from` (the pre-grasp and the grasp at 0, 50 and 100 % of
@@ -89,12 +89,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--radii", default="0.4,0.5,0.6,0.7,0.8,0.9,1.0")
     parser.add_argument("--angles", default="45,60,75,90")
+    parser.add_argument("--senses", default="1,-1", help="hinge axis +z, -z")
     parser.add_argument("--out", default=str(HERE / "results" / "jaco_door_reach.json"))
     args = parser.parse_args()
     runs = []
     for radius in (float(r) for r in args.radii.split(",")):
         for angle in (float(a) for a in args.angles.split(",")):
-            for sense in (1.0, -1.0):
+            for sense in (float(v) for v in args.senses.split(",")):
                 run = one(radius, angle, sense)
                 runs.append(run)
                 print(
