@@ -1,8 +1,8 @@
 """Which doors the Jaco can open from one base: the door's radius and opening angle against
 the base placements that reach the whole demonstrated arc.
 
-    nice -n 10 python benchmarks/studies/jaco_door_reach.py [--radii 0.4,0.5,...,1.0]
-        [--angles 45,60,75,90] [--senses 1,-1] [--out FILE.json]
+    nice -n 10 python benchmarks/studies/jaco_door_reach.py [--radii 0.4,0.6,...,1.0]
+        [--angles 60,75,90] [--senses 1,-1] [--out FILE.json]
 
 A door with its handle at 0.9 m, hinged either side, each radius [m] and opening angle
 [deg]; for each, `sim.reach.reaches_from` (the pre-grasp and the grasp at 0, 50 and 100 % of
@@ -10,11 +10,11 @@ the opening, 0.15 rad inside the joint limits, clear of the door; a home clear o
 
 - `candidates`: the sequence's own search (`sim.jaco.BASE_PLACEMENT` and
   `sim.reach.BASE_CANDIDATES`, 11 placements);
-- `wide`: a dense grid of placements (horizontal distance 0.25-0.75 m from the handle's
-  half-way position, every 30 deg of azimuth, heights -0.4 to -0.1 m), after a distance
-  filter (every grasp along the arc within `REACH` of the shoulder).
+- `wide`: a denser grid of placements (horizontal distance 0.35-0.65 m from the handle's
+  half-way position, every 45 deg of azimuth, heights -0.3 and -0.1 m: 64), after a
+  distance filter (every grasp along the arc within `REACH` of the shoulder).
 
-Writes JSON with provenance, prints a table: the number of placements that reach.
+Writes JSON with provenance, prints a line per door: the number of placements that reach.
 """
 
 from __future__ import annotations
@@ -42,10 +42,7 @@ HANDLE = np.array([0.6, 0.0, 0.9])  # [m]
 SHOULDER = 0.2755  # [m] the Jaco's shoulder above its base (Kinova's D1)
 REACH = 0.95  # [m] shoulder to tool point, fully stretched, rounded up
 WIDE = tuple(
-    (r, a, h)
-    for r in (0.25, 0.35, 0.45, 0.55, 0.65, 0.75)
-    for a in range(0, 360, 30)
-    for h in (-0.4, -0.3, -0.2, -0.1)
+    (r, a, h) for r in (0.35, 0.45, 0.55, 0.65) for a in range(0, 360, 45) for h in (-0.3, -0.1)
 )
 HOME = (-0.10, 0.50)  # SequenceConfig's jaco_home_forward, jaco_home_up
 
@@ -87,8 +84,8 @@ def one(radius: float, angle: float, sense: float) -> dict[str, Any]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--radii", default="0.4,0.5,0.6,0.7,0.8,0.9,1.0")
-    parser.add_argument("--angles", default="45,60,75,90")
+    parser.add_argument("--radii", default="0.4,0.6,0.7,0.8,0.9,1.0")
+    parser.add_argument("--angles", default="60,75,90")
     parser.add_argument("--senses", default="1,-1", help="hinge axis +z, -z")
     parser.add_argument("--out", default=str(HERE / "results" / "jaco_door_reach.json"))
     args = parser.parse_args()
