@@ -688,7 +688,7 @@ def run_in_simulation(
         "constraint_type": skill.constraint_type,
         "force_exertion_type": skill.grasp,
         "start": START_HOME,
-        "recognizer": cfg.recognizer if recognizer is None else recognizer.name,
+        "recognizer": recognizer.name,
     }
     record = SequenceRecord(label, notes=notes)
     out = _execute_into(
