@@ -2,14 +2,16 @@
 prints a table.
 
     nice -n 10 python benchmarks/recognizer.py [--scenes 40] [--seed 7] [--data FILE.npz]
-        [--out benchmarks/results/recognizer.json]
+        [--kinds drawer,...] [--per-crop] [--out benchmarks/results/recognizer.json]
 
 Held-out crops (lfo/grasp_data.py with a seed `cap train-grasp` does not use: other
 placements, sizes, distractors and demonstration offsets), from both robots' head cameras;
 per kind and method (the shipped CNN, the geometric baseline): the contact-point error's
 median and 95th percentile [mm], the approach error's 95th percentile [deg], and the share of
 crops without an answer. Also the demonstrated point's own distance from the contact point
-and the nominal approach's error: what the recognizer starts from.
+and the nominal approach's error: what the recognizer starts from. `--kinds`: those kinds'
+scenes only (the same scenes as in the full set); `--per-crop`: also every crop's errors, its
+scene (8 crops each: 4 per robot's camera) and the share of its cells without a depth return.
 """
 
 from __future__ import annotations
@@ -22,15 +24,41 @@ import numpy as np
 
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.lfo.grasp_data import GraspDataset, generate
-from constraint_aware.lfo.grasp_training import score
+from constraint_aware.lfo.grasp_training import Scores, score
 from constraint_aware.recognizer import ContactPointRecognizer, GeometricRecognizer
+from constraint_aware.sim.tasks import KINDS
 
 HERE = Path(__file__).parent
 TARGETS = {"median_mm": 5.0, "p95_mm": 15.0, "approach_p95_deg": 10.0}
+CROPS_PER_SCENE = 8  # lfo.grasp_data.generate's default: 4 crops per view, 2 robots' cameras
 
 
 def _f(x: float | None) -> str:
     return "-" if x is None else f"{x:.1f}"
+
+
+def _per_crop(data: GraspDataset, scores: dict[str, Scores]) -> list[dict[str, object]]:
+    """Every crop: kind, scene (its index among the kind's scenes), robot, the demonstrated
+    point's offset [mm], the share of cells without a return, each method's contact-point
+    error [mm] (None: no answer)."""
+    out: list[dict[str, object]] = []
+    seen: dict[str, int] = {}
+    for i in range(len(data)):
+        kind = str(data.kinds[i])
+        n = seen.get(kind, 0)
+        seen[kind] = n + 1
+        row: dict[str, object] = {
+            "kind": kind,
+            "scene": n // CROPS_PER_SCENE,
+            "robot": str(data.robots[i]),
+            "offset_mm": 1000.0 * float(data.offsets[i]),
+            "no_return": float(np.isnan(data.heights[i]).mean()),
+        }
+        for name, s in scores.items():
+            e = float(s.position[i])
+            row[f"{name}_mm"] = 1000.0 * e if np.isfinite(e) else None
+        out.append(row)
+    return out
 
 
 def main() -> None:
@@ -38,15 +66,23 @@ def main() -> None:
     parser.add_argument("--scenes", type=int, default=40, help="held-out scenes per kind")
     parser.add_argument("--seed", type=int, default=7, help="of the held-out scenes")
     parser.add_argument("--data", help="score these crops (a GraspDataset .npz) instead")
+    parser.add_argument("--kinds", default=",".join(KINDS), help="object kinds, comma-separated")
+    parser.add_argument("--per-crop", action="store_true", help="every crop's errors too")
     parser.add_argument("--out", default=str(HERE / "results" / "recognizer.json"))
     args = parser.parse_args()
     start = time.perf_counter()
-    data = GraspDataset.load(args.data) if args.data else generate(args.scenes, seed=args.seed)
+    kinds_asked = tuple(k for k in args.kinds.split(",") if k)
+    data = (
+        GraspDataset.load(args.data)
+        if args.data
+        else generate(args.scenes, seed=args.seed, kinds=kinds_asked)
+    )
     generated = time.perf_counter() - start
-    tables = {
-        found.name: score(found, data).table()
+    scores = {
+        found.name: score(found, data)
         for found in (ContactPointRecognizer.load(), GeometricRecognizer())
     }
+    tables = {name: s.table() for name, s in scores.items()}
     kinds = list(dict.fromkeys(data.kinds.tolist()))
     start_from = {
         kind: {
@@ -69,6 +105,8 @@ def main() -> None:
         "demonstration": start_from,
         "generation_s": generated,
     }
+    if args.per_crop:
+        results["per_crop"] = _per_crop(data, scores)
     out = write_results(args.out, results)
     print("| kind | method | median [mm] | p95 [mm] | approach p95 [deg] | no answer |")
     print("|---" * 6 + "|")

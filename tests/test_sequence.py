@@ -262,6 +262,32 @@ def test_a_fault_in_a_phase_stops_the_sequence_safely_with_its_record() -> None:
     assert holds  # the robot was told to hold
 
 
+def test_the_hook_takes_up_its_play_before_the_manipulation() -> None:
+    # closing the hook sweeps the bar against the palm, the whole play away from the fingers
+    # that pull it; taken up (and the wrist relaxed), the manipulation's first step no longer
+    # strikes the bar: it peaks no higher than the same drawer placed at the grasp
+    from constraint_aware.lfo.sequence import run_in_simulation
+    from constraint_aware.policy import ConstraintAwarePolicy
+
+    place, skill = _offset_drawer()
+    policy = ConstraintAwarePolicy.load()
+    peaks = {}
+    for start in ("home", "placed"):
+
+        def on_phase(name: str, sim: Any, start: str = start) -> None:
+            if name == "grasp" and start == "placed":
+                sim.reset()  # the placed grasp, as --start at-grasp begins
+
+        result = run_in_simulation(skill, place.task, "hook-hand", policy=policy,
+                                   on_phase=on_phase)  # fmt: skip
+        assert result.record.success, result.record.reason
+        # taken up: the bar bore on the fingers, or the drawer came along under 1 N
+        assert result.record.phase("grasp").details["take_up"] in ("contact", "reached")
+        assert result.record.manipulation is not None
+        peaks[start] = result.record.manipulation.peak_force
+    assert peaks["home"] <= max(1.05 * peaks["placed"], peaks["placed"] + 0.2)
+
+
 def test_a_bar_outside_the_hook_stops_the_manipulation_on_lost_contact() -> None:
     # the hook hand holds a bar with play (no contact needed before the pull): a contact
     # point perceived 4 cm in front of the bar closes the hook in front of it, and the

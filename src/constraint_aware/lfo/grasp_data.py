@@ -256,7 +256,8 @@ def generate(
     progress: Callable[[int, int], None] | None = None,
 ) -> GraspDataset:
     """`scenes_per_kind` usable scenes of each kind (`scene_samples`), seeded: scene i of kind
-    k draws from np.random.default_rng([seed, k, i, attempt])."""
+    k (its index in sim.tasks.KINDS, so that a subset of kinds gives the same scenes) draws
+    from np.random.default_rng([seed, k, i, attempt])."""
     if scenes_per_kind < 1:
         raise InvalidInputError(f"scenes_per_kind: {scenes_per_kind}; valid: >= 1")
     if crops_per_view < 1:
@@ -264,7 +265,10 @@ def generate(
     parts: list[GraspDataset] = []
     total = scenes_per_kind * len(kinds)
     done = 0
-    for k, kind in enumerate(kinds):
+    for kind in kinds:
+        if kind not in KINDS:
+            raise InvalidInputError(f"kinds: {kind!r}; valid: {', '.join(KINDS)}")
+        k = KINDS.index(kind)
         for i in range(scenes_per_kind):
             for attempt in range(20):
                 rng = np.random.default_rng([seed, k, i, attempt])

@@ -17,17 +17,21 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
    `press_depth` on; the wrist then rests where it settled (no preload) and the hand must
    report contact, unless it holds the handle with play (`grasp_touches`: the hook hand's
    bar, touched only when the hand pulls; a bar outside the hook shows in the manipulation
-   as the executor's lost-contact stop).
+   as the executor's lost-contact stop). A grasp with play has it taken up
+   (`SequenceConfig.take_up`): closing leaves the handle on the far side of the play, and the
+   manipulation's first step would strike it.
 5. manipulate: the executor (control/executor.py) with the corrected skill's estimates in
    charge, exactly as `lfo.execute` runs it, without the simulator's task monitor.
 6. release: the wrist rests where it is, the hand opens to the shape it came in with (a way
-   out known to be free).
+   out known to be free); a hand that pressed (plate, knob) rests again where opening pushed
+   it.
 7. retreat: back along the hand's approach axis by `retreat`.
 8. home: back to the home pose (the Jaco around the object, which it believes moved as far as
    its own hand did).
 
 `run_in_simulation` builds the simulated world (the true object, the robot at the station
-the demonstration implies, the head camera) and runs `execute_sequence` on it; only the
+the demonstration implies, the head camera; a robot on a base moves it when the grasp it
+perceives from there is out of reach) and runs `execute_sequence` on it; only the
 `SequenceRobot` adapter (no ground truth through it) and the camera reach the pipeline.
 `on_phase(name)` is called after each phase and `on_period()` after every control period,
 for scoring and rendering outside the pipeline.
@@ -56,7 +60,7 @@ from constraint_aware.control.executor import Executor
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import request_hold
-from constraint_aware.errors import CapError, UnknownNameError
+from constraint_aware.errors import CapError, UnknownNameError, check_number
 from constraint_aware.geometry import FloatArray, unit
 from constraint_aware.lfo.infer import SkillParameters
 from constraint_aware.lfo.manipulation import SENSOR_NOISE, goal_label, manipulation_setup
@@ -91,6 +95,13 @@ class SequenceConfig:
     contact_zone: float = 0.02  # [m] contact within this of the grasp counts as arrival
     retreat: float = 0.10  # [m] back along the approach after release
     reach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.06))
+    # a grasp with play (the hook around a bar) takes it up before the manipulation: slowly
+    # along the demonstrated initial direction until the handle bears on the hand, at most
+    # `take_up_travel`, then the wrist rests there
+    take_up: MoveConfig = field(
+        default_factory=lambda: MoveConfig(speed=0.01, contact_limit=1.0, position_tolerance=0.002)
+    )
+    take_up_travel: float = 0.005  # [m]
     approach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.03))
     leave: MoveConfig = field(
         default_factory=lambda: MoveConfig(speed=0.05, contact_limit=6.0, position_tolerance=0.02)
@@ -103,6 +114,12 @@ class SequenceConfig:
     recognizer: str = "cnn"
     profile: RobotProfile | None = None  # the robot's calibration, for the manipulation
     strict_inputs: bool = False  # refuse to manipulate when a stage's input is missing
+
+    def __post_init__(self) -> None:
+        for name in ("pre_grasp", "overshoot", "contact_zone", "retreat", "take_up_travel",
+                     "hook_home_back", "hook_home_up", "jaco_home_up"):  # fmt: skip
+            check_number(f"SequenceConfig.{name}", getattr(self, name), low=0.0, unit="m")
+        check_number("SequenceConfig.jaco_home_forward", self.jaco_home_forward, unit="m")
 
 
 @dataclass
@@ -387,8 +404,11 @@ def _run_phases(
     else:  # the hand stays at the grasp while the fingers close around the handle
         target = grasp
     settle = max(1, round(robot.settle_time / robot.control_period))
-    touched = False
-    for rounds in (1, 2):
+
+    def rest(target: Pose) -> bool | None:
+        """Command `target` for `settle` periods: whether the hand touched the handle (None:
+        a reading was not finite)."""
+        touched = False
         for _ in range(settle):
             robot.command_pose(target)
             robot.advance()
@@ -397,12 +417,31 @@ def _run_phases(
                 on_period()
             force = np.asarray(robot.read_wrench().force, dtype=float)
             if not np.all(np.isfinite(force)):
-                return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
+                return None
             touched = touched or bool(robot.grasp_contact())
-        if press > 0 or rounds == 2:
-            break
-        robot.hold()  # no press: the wrist rests where closing left it (no preload)
-        target = robot.commanded_pose()
+        return touched
+
+    touched = rest(target)
+    if touched is not None and press == 0:
+        # the wrist rests where closing left it (no preload) ...
+        robot.hold()
+        touched = rest(robot.commanded_pose())
+        if touched is not None and not robot.grasp_touches(shape):
+            # ... and a grasp with play has it taken up: closing sweeps the handle to one side
+            # of the play, the manipulation's first step would strike it across the rest
+            d0 = unit(np.asarray(fixed.initial_direction, dtype=float))
+            here = robot.commanded_pose()
+            path = straight_line(
+                here, here.moved(cfg.take_up_travel * d0), cfg.take_up, robot.control_period
+            )
+            m = move(phase, path, cfg.take_up, contact_from=0)
+            phase.details["take_up"] = m.outcome
+            if not m.ok:
+                return _fail(robot, record, phase, m.outcome, m.reason)
+            robot.hold()
+            touched = rest(robot.commanded_pose())
+    if touched is None:
+        return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
     # a press stays commanded: the executor starts from the pressing setpoint (as at reset)
     if robot.grasp_touches(shape) and not (touched or robot.grasp_contact()):
         return _fail(robot, record, phase, "no_contact", "the closed hand touches nothing")
@@ -438,14 +477,14 @@ def _run_phases(
     phase.outcome = "running"
     robot.hold()
     robot.open_hand(shape)
-    for _ in range(settle):
-        robot.command_pose(robot.commanded_pose())
-        robot.advance()
-        phase.periods += 1
-        if on_period is not None:
-            on_period()
-        force = np.asarray(robot.read_wrench().force, dtype=float)
-        if not np.all(np.isfinite(force)):
+    if rest(robot.commanded_pose()) is None:
+        return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
+    if press > 0:
+        # a hand that pressed stays on the handle's face: the fingers opening around it push
+        # the hand, and a retreat from the loaded wrist read the unloading as a contact; the
+        # wrist rests where it was pushed
+        robot.hold()
+        if rest(robot.commanded_pose()) is None:
             return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
     done(phase)
 
@@ -582,29 +621,64 @@ def run_in_simulation(
     world_hook: Callable[[Embodiment], None] | None = None,
 ) -> SimulatedSequence:
     """The sequence on the simulated `task` (the truth: only the world is built from it).
-    The station comes from the skill; the camera's noise and the force sensor's from `seed`.
-    world_hook(sim) runs once the world is built (tests inject faults through it);
+    The station comes from the skill (a base moved when the grasp perceived from there is out
+    of reach: the world is then built again, before anything moved); the camera's noise and
+    the force sensor's from `seed`. world_hook(sim) runs on each world built (tests inject
+    faults through it);
     on_phase(name, sim) and on_period(sim) observe (scoring, video)."""
     cfg = config or SequenceConfig()
     station = station_for(robot, skill, cfg)
-    sim, adapter = build_world(
-        robot, task, station, np.random.default_rng(seed + 7919), sensor_noise
-    )
-    if world_hook is not None:
-        world_hook(sim)
-    shape, _ = nominal_frame(skill)
-    adapter.start_at_home(shape)
-    adapter.believe(scene_from_skill(skill).task, 0.0)
+    recognizer = recognizer or make_recognizer(cfg.recognizer)
+    notes: list[str] = []
+
+    def world(at: Station) -> tuple[Embodiment, Any]:
+        sim, adapter = build_world(
+            robot, task, at, np.random.default_rng(seed + 7919), sensor_noise
+        )
+        if world_hook is not None:
+            world_hook(sim)
+        shape, _ = nominal_frame(skill)
+        adapter.start_at_home(shape)
+        adapter.believe(scene_from_skill(skill).task, 0.0)
+        return sim, adapter
+
+    def look(sim: Embodiment, at: Station) -> DepthImage:
+        camera = DepthCamera(sim.model, at.camera)
+        try:
+            return camera.capture(sim.data, np.random.default_rng(seed + 104729))
+        finally:
+            camera.close()
+
+    sim, adapter = world(station)
+    image: DepthImage | None = None
+    if station.base is not None:
+        # a robot on a mobile base looks first (the head camera depends on the demonstration
+        # alone) and stands where the perceived grasp, not the demonstrated one, is reachable:
+        # a demonstration locates the handle only to some centimetres
+        image = look(sim, station)
+        from constraint_aware.sim.reach import reaches_from
+
+        offsets = (cfg.jaco_home_forward, cfg.jaco_home_up)
+        try:
+            fixed = corrected_skill(skill, perceive(skill, image, recognizer).recognition)
+            if not reaches_from(scene_from_skill(fixed).task, station.base, cfg.pre_grasp, offsets):
+                moved = dataclasses.replace(station_for(robot, fixed, cfg), camera=station.camera)
+                assert moved.base is not None
+                notes.append(
+                    "the perceived grasp is out of reach from the demonstration's station: the "
+                    f"base moved {np.round(station.base, 3).tolist()} -> "
+                    f"{np.round(moved.base, 3).tolist()} m"
+                )
+                station = moved
+                sim, adapter = world(station)
+        except (RecognitionError, CapError) as exc:  # the sequence's phases report it
+            notes.append(f"the base stays where the demonstration puts it: {exc}")
     seen: list[DepthImage] = []
 
     def capture() -> DepthImage:
-        camera = DepthCamera(sim.model, station.camera)
-        try:
-            image = camera.capture(sim.data, np.random.default_rng(seed + 104729))
-        finally:
-            camera.close()
-        seen.append(image)
-        return image
+        taken = image if image is not None else look(sim, station)
+        seen.append(taken)
+        return taken
 
     label = {
         "robot": robot,
@@ -614,9 +688,9 @@ def run_in_simulation(
         "constraint_type": skill.constraint_type,
         "force_exertion_type": skill.grasp,
         "start": START_HOME,
-        "recognizer": cfg.recognizer if recognizer is None else recognizer.name,
+        "recognizer": recognizer.name,
     }
-    record = SequenceRecord(label)
+    record = SequenceRecord(label, notes=notes)
     out = _execute_into(
         record, adapter, capture, skill, controller, policy, recognizer, cfg,
         None if on_phase is None else (lambda name: on_phase(name, sim)),

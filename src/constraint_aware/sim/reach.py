@@ -31,6 +31,7 @@ from constraint_aware.sim.jaco import (
     JACO_GRASPS,
     TCP_SITE,
     JacoSim,
+    OscConfig,
     arm_base,
     build_spec,
 )
@@ -118,13 +119,17 @@ class JacoPlanner:
         self.config = config or PlannerConfig()
         self.fingers = 0.2  # [rad] the fingers' angle in the planning model (the hand's shape)
         self._model: mujoco.MjModel | None = None
+        self._task: TaskConfig | None = None
         self._joint = 0.0
 
     def set_object(self, task: TaskConfig, joint_position: float = 0.0) -> None:
         """The object as the robot believes it: `task`'s object (built from the demonstration)
         with its joint at `joint_position` [m or rad]."""
-        self._model = build_spec(task, self.base, solid_for_arms=True).compile()
         self._joint = float(joint_position)
+        if task == self._task:  # the same object moved: its model stands
+            return
+        self._model = build_spec(task, self.base, solid_for_arms=True).compile()
+        self._task = task
         m = self._model
         self._arm_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in ARM_JOINTS])
         self._arm_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in ARM_JOINTS])
@@ -206,25 +211,47 @@ class JacoPlanner:
         return float(best)
 
     def solve_ik(
-        self, pose: Pose, near: FloatArray, handle: bool = True, clearance: float | None = None
+        self,
+        pose: Pose,
+        near: FloatArray,
+        handle: bool = True,
+        clearance: float | None = None,
+        margin: float = 0.0,
     ) -> FloatArray:
         """(6,) [rad] joint angles putting the tool at `pose`, clear of the object by at
         least `clearance` [m] (default the planner's; of everything but the handle unless
-        `handle`: a grasp holds it, its fingers reach behind it),
-        nearest (in joint space) to `near`; damped least squares from `near` and from the
-        arm's usual elbow-up seeds. PlanningError when none."""
+        `handle`: a grasp holds it, its fingers reach behind it) and at least `margin` [rad]
+        from every joint limit, nearest (in joint space) to `near`; damped least squares from
+        `near` and from the arm's usual elbow-up seeds. PlanningError when none."""
         seeds = self._seeds(pose, near)
         need = self.config.clearance if clearance is None else clearance
         found: list[FloatArray] = []
         for seed in seeds:
             q = self._ik_from(seed, pose)
-            if q is not None and self.clearance(q, handle) >= need:
+            if q is None or self.limit_margin(q) < margin:
+                continue
+            if self.clearance(q, handle) >= need:
                 found.append(q)
                 if len(found) >= 3:  # enough to choose the nearest from
                     break
         if not found:
-            raise PlanningError("no collision-free joint angles reach the goal pose")
+            raise PlanningError(
+                "no collision-free joint angles reach the goal pose"
+                + (f" {margin:g} rad inside the joint limits" if margin > 0 else "")
+            )
         return min(found, key=lambda q: float(np.sum(_wrapped(q - near) ** 2)))
+
+    def limit_margin(self, q: FloatArray) -> float:
+        """[rad] the least distance of `q` (6,) [rad] from a joint limit (pi: none limited)."""
+        return float(
+            np.min(
+                np.where(
+                    self._limited,
+                    np.minimum(q - self._range[:, 0], self._range[:, 1] - q),
+                    math.pi,
+                )
+            )
+        )
 
     def roomiest_ik(self, pose: Pose) -> FloatArray:
         """(6,) [rad] of the collision-free solutions for `pose` (everything but the handle),
@@ -235,10 +262,7 @@ class JacoPlanner:
             q = self._ik_from(seed, pose)
             if q is None or self.clearance(q, handle=False) < 0.0:
                 continue
-            margin = float(
-                np.min(np.where(self._limited, np.minimum(q - self._range[:, 0],
-                                                          self._range[:, 1] - q), math.pi))
-            )  # fmt: skip
+            margin = self.limit_margin(q)
             if margin > best_margin:
                 best, best_margin = q, margin
         if best is None:
@@ -427,43 +451,67 @@ def choose_base(
     home: tuple[float, float] | None = None,
 ) -> tuple[FloatArray, tuple[float, float, float]]:
     """Where the Jaco stands for `task` (the object as the robot believes it): the kind's
-    placement (sim.jaco.BASE_PLACEMENT) if from it, clear of the object (as `JacoPlanner`
-    checks), the arm reaches the pre-grasp `pre_grasp` [m] back from the grasp and the grasp
-    at the start, half-way and the end of the motion with the object moved that far (clear
-    of everything but the handle it holds), and, given `home` (forward, up) [m] from the
-    base toward the handle, a home tool pose clear of the object closed and at the motion's
-    end; else the first of `BASE_CANDIDATES` that does. CapError when none does. Returns the
+    placement (sim.jaco.BASE_PLACEMENT) if from it the arm reaches what `reaches_from`
+    asks, else the first of `BASE_CANDIDATES` that does. CapError when none does. Returns the
     base (3,) [m] and the placement."""
     kind = (task.object.joint_type, task.object.handle)
     first = [BASE_PLACEMENT[kind]] if kind in BASE_PLACEMENT else []
-    grasp = JacoSim(
-        task, base=arm_base(task, first[0] if first else BASE_CANDIDATES[0])
-    ).grasp_pose()
-    approach = grasp.orientation.apply([0.0, 0.0, 1.0])
-    pre = grasp.moved(-pre_grasp * approach)
-    fractions = (0.0, 0.5, 1.0)
-    motion = motion_poses(task, grasp, fractions)
+    grasp = _grasp(task)
     for placement in [*first, *BASE_CANDIDATES]:
         base = arm_base(task, placement)
-        planner = JacoPlanner(base)
-        try:
-            planner.set_object(task)
-            q = planner.solve_ik(pre, facing(base, pre.position))
-            for f, pose in zip(fractions, motion, strict=True):
-                planner.set_object(task, f * task.success_progress)
-                q = planner.solve_ik(pose, q, handle=False, clearance=0.0)
-            if home is not None:
-                tool = home_pose(base, grasp, home)
-                for f in (1.0, 0.0):
-                    planner.set_object(task, f * task.success_progress)
-                    planner.solve_ik(tool, facing(base, tool.position))
-        except PlanningError:
-            continue
-        return base, placement
+        if reaches_from(task, base, pre_grasp, home, grasp):
+            return base, placement
     raise CapError(
         f"the Jaco reaches the demonstrated motion of the {task.name} from none of "
         f"{len(BASE_CANDIDATES) + len(first)} base placements"
     )
+
+
+def _grasp(task: TaskConfig) -> Pose:
+    """The Jaco's tool pose at `task`'s grasp (its hand mount, from the kind's placement)."""
+    kind = (task.object.joint_type, task.object.handle)
+    return JacoSim(
+        task, base=arm_base(task, BASE_PLACEMENT.get(kind, BASE_CANDIDATES[0]))
+    ).grasp_pose()
+
+
+def reaches_from(
+    task: TaskConfig,
+    base: FloatArray,
+    pre_grasp: float = 0.10,
+    home: tuple[float, float] | None = None,
+    grasp: Pose | None = None,
+) -> bool:
+    """Whether the Jaco standing at `base` (3,) [m] reaches `task`'s object as the robot
+    believes it: clear of the object (as `JacoPlanner` checks), the pre-grasp `pre_grasp` [m]
+    back from the grasp, and the grasp at the start, half-way and the end of the motion with
+    the object moved that far (clear of everything but the handle it holds), and, given
+    `home` (forward, up) [m] from the base toward the handle, a home tool pose clear of the
+    object closed and at the motion's end. `grasp`: the tool pose at the grasp, if known.
+
+    The pre-grasp and the motion must be reached `OscConfig.limit_margin` inside the joint
+    limits: there the controller's joint-limit repulsion starts, and a posture inside it is
+    one the arm does not hold (it stops short of the grasp)."""
+    grasp = grasp or _grasp(task)
+    approach = grasp.orientation.apply([0.0, 0.0, 1.0])
+    pre = grasp.moved(-pre_grasp * approach)
+    fractions = (0.0, 0.5, 1.0)
+    margin = OscConfig().limit_margin
+    planner = JacoPlanner(base)
+    try:
+        planner.set_object(task)
+        q = planner.solve_ik(pre, facing(base, pre.position), margin=margin)
+        for f, pose in zip(fractions, motion_poses(task, grasp, fractions), strict=True):
+            planner.set_object(task, f * task.success_progress)
+            q = planner.solve_ik(pose, q, handle=False, clearance=0.0, margin=margin)
+        if home is not None:
+            tool = home_pose(base, grasp, home)
+            for f in (1.0, 0.0):
+                planner.set_object(task, f * task.success_progress)
+                planner.solve_ik(tool, facing(base, tool.position))
+    except PlanningError:
+        return False
+    return True
 
 
 def home_pose(base: FloatArray, grasp: Pose, home: tuple[float, float]) -> Pose:
