@@ -160,8 +160,9 @@ def run_end_to_end(
     policy = policy or ConstraintAwarePolicy.load()
     found = make_recognizer(recognizer)
     result = EndToEndResult(per_kind, seed, list(robots), list(kinds), recognizer)
-    # in this process, not on the sweep's forked workers: there the sequences' offscreen
-    # depth rendering (EGL) hung
+    # one after the other in the calling process, never on a pool forked from a process that
+    # has rendered: the sequences' offscreen depth rendering (EGL) hangs there (`cap bench`
+    # runs this section in a process of its own)
     for robot in robots:
         for k, kind in enumerate(kinds):
             for i in range(per_kind):
