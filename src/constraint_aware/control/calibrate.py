@@ -1201,8 +1201,9 @@ def calibrate_free_space(
     (`fit_impedance`, the setpoint a straight line within each period), then the fitted
     model's 63.2 % rise time for a step (c / k for a well-damped arm); tau is the mean over
     the steps whose fit's standard uncertainty is within TAU_RELATIVE_UNCERTAINTY (the
-    per-step values are noted): one number for the three axes, as the Robot protocol's. Stiffness, grasp play, deflection error and sensor
-    convention are left unmeasured: there is nothing to push against.
+    per-step values are noted): one number for the three axes, as the Robot protocol's.
+    Stiffness, grasp play, deflection error and sensor convention are left unmeasured: there
+    is nothing to push against.
 
     Safety: |F - F_rest| reaching `contact_force` during any move stops the calibration with
     outcome "contact" (the free space was not free); the force limit, the travel (never
@@ -1315,9 +1316,7 @@ def _guarded_step(session: _Session, cfg: FreeSpaceConfig, target: Pose | None) 
     return reading
 
 
-def _step_response(
-    session: _Session, cfg: FreeSpaceConfig, u: FloatArray
-) -> list[list[Reading]]:
+def _step_response(session: _Session, cfg: FreeSpaceConfig, u: FloatArray) -> list[list[Reading]]:
     """Clear the path along `u` with a staircase to `step`, settle there and step back to the
     start; then, from rest, step out to `step` and back again, each at once over the cleared
     path: the two responses, each the readings from the settled one through `step_periods`
