@@ -621,7 +621,7 @@ ROBOT_WIDE_POSTURE = "drawer-opening"  # the grasp posture of the robot-wide cal
 def free_space_sweep(seeds: int) -> dict[str, Any]:
     """The free-space calibration against tau on both robots, every in-range stiffness and
     task posture (module docstring)."""
-    rows = []
+    rows: list[dict[str, Any]] = []
     for r, robot in enumerate(ROBOTS):
         for s, stiffness in enumerate(IN_RANGE[robot]):
             for t, task in enumerate(TASKS):
@@ -635,7 +635,7 @@ def free_space_sweep(seeds: int) -> dict[str, Any]:
                     profile = calibrate_free_space(RequiredMembers(free_space(sim)), spec.robot)
                     wall = time.perf_counter() - start
                     tau = profile.quantities["tracking_time_constant"]
-                    noise = profile.value("force_noise")
+                    sigma = profile.value("force_noise")
                     rows.append({
                         "robot": robot, "stiffness_setting": stiffness, "task": task,
                         "seed": seed, "outcome": profile.outcome, "periods": profile.periods,
@@ -644,8 +644,8 @@ def free_space_sweep(seeds: int) -> dict[str, Any]:
                         "tau_reason": tau.reason, "tau_truth": truth,
                         "tau_ratio": None if tau.value is None else tau.value / truth,
                         "damping_over_stiffness_s": damping_over_stiffness(sim),
-                        "force_noise": noise,
-                        "force_noise_ratio": None if noise is None else noise / SENSOR_NOISE,
+                        "force_noise": sigma,
+                        "force_noise_ratio": None if sigma is None else sigma / SENSOR_NOISE,
                         "notes": profile.notes,
                     })  # fmt: skip
                     print(
@@ -695,9 +695,14 @@ def free_space_sweep(seeds: int) -> dict[str, Any]:
         if ratio is None or abs(ratio - 1) > tol
     ]
     return {
-        "config": {"seeds": seeds, "stiffnesses_N_per_m": IN_RANGE, "tasks": list(TASKS),
-                   "sensor_noise_N": SENSOR_NOISE, "free_space": vars(FreeSpaceConfig()),
-                   "robot_wide_posture": ROBOT_WIDE_POSTURE},  # fmt: skip
+        "config": {
+            "seeds": seeds,
+            "stiffnesses_N_per_m": IN_RANGE,
+            "tasks": list(TASKS),
+            "sensor_noise_N": SENSOR_NOISE,
+            "free_space": vars(FreeSpaceConfig()),
+            "robot_wide_posture": ROBOT_WIDE_POSTURE,
+        },
         "must_shows": {
             "tau_within_20pct": {
                 "calibrations": len(rows),
