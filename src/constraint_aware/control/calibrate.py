@@ -1238,7 +1238,7 @@ def calibrate_free_space(
     )
     for q in HELD_ONLY:
         profile.quantities[q] = Measurement.unmeasured(
-            q, "a free-space calibration: nothing to push against (calibrate holding an object)"
+            q, "a free-space calibration: nothing to push against"
         )
     # the session's checks and restore with the free-space limits (the push settings unused)
     session_cfg = CalibrationConfig(
