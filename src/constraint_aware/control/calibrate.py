@@ -372,8 +372,8 @@ def calibrate(
         setup: what the hand holds, recorded in the profile.
         free_space_profile: the same robot's free-space calibration (`calibrate_free_space`,
             at the same control period): its tracking time constant is taken, with its
-            `source` named, where the pushes leave tau unmeasured, and then used for the
-            stiffness and the deflection error as a measured one is. None: none.
+            `source` named, in place of the pushes' estimate (noted beside it), and used for
+            the stiffness and the deflection error. None: tau from the pushes.
 
     Returns:
         The profile; its `outcome` says whether every phase ran. The robot is told to hold
@@ -462,16 +462,16 @@ def _free_space_tau(free_space: RobotProfile | None, period: float) -> Measureme
 def _time_constant_or_prior(
     profile: RobotProfile, pushes: list[Push], period: float, prior: Measurement | None
 ) -> None:
-    """tau from the pushes (`_time_constant`); where they leave it unmeasured, the free-space
-    calibration's (`prior`), the pushes' reason kept in a note."""
+    """tau from the free-space calibration (`prior`) when there is one, the pushes' own
+    estimate (`_time_constant`) in a note; else the pushes'. tau is the arm controller's, not
+    the task's: measured where the arm moves freely, free of the object's resistance and of
+    joints stuck under load (the accuracy of each: docs/design/calibration.md)."""
     _time_constant(profile, pushes, period)
     own = profile.quantities["tracking_time_constant"]
-    if own.measured or prior is None:
+    if prior is None:
         return
-    note = (
-        f"tracking_time_constant from the {prior.source}: the pushes left it unmeasured "
-        f"({own.reason})"
-    )
+    pushes_say = f"{own.value:.3g} s" if own.value is not None else f"unmeasured ({own.reason})"
+    note = f"tracking_time_constant from the {prior.source}; the pushes' own: {pushes_say}"
     if note not in profile.notes:
         profile.notes.append(note)
     profile.quantities["tracking_time_constant"] = prior
