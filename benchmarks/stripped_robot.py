@@ -167,6 +167,10 @@ class DeadSensor:
         self.sim.command_pose(self.sim.read_pose())
 
 
+#: [control periods] held after the contacts go off, before a free-space calibration.
+SETTLE_FREE_PERIODS = 20
+
+
 def free_space(sim: Any) -> Any:
     """The simulated robot with its contacts off (on a copy of its model: the cached model
     other runs share stays as it is): the hand in free space at its grasp posture."""
@@ -175,6 +179,10 @@ def free_space(sim: Any) -> Any:
     model = copy.copy(sim.model)
     model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     sim.model = model
+    # let go of the object's contact forces and come to rest: the calibration starts at rest
+    for _ in range(SETTLE_FREE_PERIODS):
+        sim.command_pose(sim.commanded_pose())
+        sim.advance()
     return sim
 
 

@@ -212,12 +212,20 @@ def test_a_free_space_profile_at_another_control_period_is_refused(
 
 
 # --- on the simulated robots -------------------------------------------------------------------
+#: [control periods] held after the contacts go off, before a free-space calibration.
+SETTLE_FREE_PERIODS = 20
+
+
 def _contacts_off(sim: Any) -> Any:
     import mujoco
 
     model = copy.copy(sim.model)
     model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
     sim.model = model
+    # let go of the object's contact forces and come to rest: the calibration starts at rest
+    for _ in range(SETTLE_FREE_PERIODS):
+        sim.command_pose(sim.commanded_pose())
+        sim.advance()
     return sim
 
 
