@@ -1324,8 +1324,7 @@ def _step_response(session: _Session, cfg: FreeSpaceConfig, u: FloatArray) -> li
     start; then, from rest, step out to `step` and back again, each at once over the cleared
     path: the two responses, each the readings from the settled one through `step_periods`
     after. The first step back is not a response: the slow staircase before it leaves an arm
-    with dry friction in its joints loaded unlike a step from rest (the Jaco's reads up to
-    1.3 x slower)."""
+    with dry friction in its joints loaded unlike a step from rest."""
     stair = SAFE_SHARE * (cfg.force_limit - cfg.contact_force) / cfg.max_stiffness
     depth = 0.0
     while depth < cfg.step:
@@ -1436,8 +1435,7 @@ def fit_step_response(
     """Fit x'' = ((1 - f) w - x) / a - (b / a) x' to a step response sampled once per period:
     the impedance of `fit_impedance` with the drive w (the setpoint, a straight line between
     samples, from rest at x = w = 0) short by a share f, the arm's dry friction holding it
-    short of the setpoint (the simulated Jaco's joints stall 10-13 % short of a 1 cm step at
-    700 N/m; a linear arm fits f = 0).
+    short of the setpoint (a linear arm fits f = 0).
 
     Args:
         drive: (n,) [m] the setpoint along the step at each sample.
