@@ -65,6 +65,11 @@ The phases (one reading per control period throughout):
      soft one (the hand moved against a rising resistance). A fit whose standard
      uncertainty exceeds TAU_RELATIVE_UNCERTAINTY of tau leaves it unmeasured.
 
+The tracking time constant is the arm controller's, not the task's: `calibrate_free_space`
+measures it (and the noise) once per robot with the hand in free space, from setpoint steps
+over a path a staircase has cleared first; given to `calibrate` as `free_space_profile`, its
+tau replaces the pushes' estimate, the `source` of the quantity naming that calibration.
+
 Safety: every reading is checked (finite force and poses, not stale, |F - F_rest| within
 `force_limit`); no setpoint is ever commanded further than `travel_limit` from where the
 calibration started; it stops after `max_periods`. On every stop, on any exception and at
