@@ -3,6 +3,16 @@
     python benchmarks/calibration.py [--seeds 5] [--out benchmarks/results/calibration.json]
     python benchmarks/calibration.py --tool-point [--seeds 1]
         --out benchmarks/results/calibration_tool_point.json
+    python benchmarks/calibration.py --free-space [--seeds 1]
+        --out benchmarks/results/calibration_free_space.json
+
+`--free-space`: the free-space calibration (`calibrate_free_space`) against the simulators'
+tau, on both robots at the stiffnesses of their advertised ranges, at each task's grasp
+posture with the simulator's contacts off (the hand holds nothing and meets nothing: the
+simulators' own definition of tau, the 63.2 % rise time of a 1 cm step in free space at the
+grasp posture); and the robot-wide use: the calibration at the drawer's grasp posture against
+every task's tau (one free-space calibration per robot, as a user makes it). Must-show: tau
+within 20 %; beside it the robot time it takes and sigma within 20 %.
 
 `--tool-point`: the calibrated stiffness against the effective stiffness at the tool point,
 measured with simulator privileges (`tool_point_stiffness`: the object locked, the force per
@@ -47,6 +57,8 @@ Results JSON through bench.provenance.write_results.
 from __future__ import annotations
 
 import argparse
+import copy
+import json
 import math
 import re
 import statistics
@@ -58,7 +70,12 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench.provenance import write_results
-from constraint_aware.control.calibrate import CalibrationConfig, calibrate
+from constraint_aware.control.calibrate import (
+    CalibrationConfig,
+    FreeSpaceConfig,
+    calibrate,
+    calibrate_free_space,
+)
 from constraint_aware.control.probe import push_directions
 from constraint_aware.control.simulate import RunSpec, grasped
 from constraint_aware.sim.embodiment import VARIANT_RANGES
@@ -587,6 +604,133 @@ def tool_point(seeds: int) -> dict[str, Any]:
     return {"stiffnesses": IN_RANGE, "summary": summary, "rows": rows}
 
 
+#: [control periods] held after the contacts go off, before a free-space calibration.
+SETTLE_FREE_PERIODS = 20
+
+
+def free_space(sim: Any) -> Any:
+    """The simulated robot with its contacts off (a copy of its model: the cached model other
+    runs share stays as it is): the hand in free space at its grasp posture."""
+    import mujoco
+
+    model = copy.copy(sim.model)
+    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    sim.model = model
+    # let go of the object's contact forces and come to rest: the calibration starts at rest
+    for _ in range(SETTLE_FREE_PERIODS):
+        sim.command_pose(sim.commanded_pose())
+        sim.advance()
+    return sim
+
+
+ROBOT_WIDE_POSTURE = "drawer-opening"  # the grasp posture of the robot-wide calibration
+
+
+def free_space_sweep(seeds: int) -> dict[str, Any]:
+    """The free-space calibration against tau on both robots, every in-range stiffness and
+    task posture (module docstring)."""
+    rows: list[dict[str, Any]] = []
+    for r, robot in enumerate(ROBOTS):
+        for s, stiffness in enumerate(IN_RANGE[robot]):
+            for t, task in enumerate(TASKS):
+                for i in range(seeds):
+                    seed = 1000 * r + 100 * s + 10 * t + i
+                    spec = RunSpec(task, seed=seed, robot=robot_spec(robot, stiffness),
+                                   sensor_noise=SENSOR_NOISE)  # fmt: skip
+                    _task, sim = grasped(spec)
+                    truth = float(sim.tracking_time_constant)
+                    start = time.perf_counter()
+                    profile = calibrate_free_space(RequiredMembers(free_space(sim)), spec.robot)
+                    wall = time.perf_counter() - start
+                    tau = profile.quantities["tracking_time_constant"]
+                    sigma = profile.value("force_noise")
+                    rows.append({
+                        "robot": robot, "stiffness_setting": stiffness, "task": task,
+                        "seed": seed, "outcome": profile.outcome, "periods": profile.periods,
+                        "robot_time_s": profile.robot_time, "wall_s": wall,
+                        "tau": tau.value, "tau_uncertainty": tau.uncertainty,
+                        "tau_reason": tau.reason, "tau_truth": truth,
+                        "tau_ratio": None if tau.value is None else tau.value / truth,
+                        "damping_over_stiffness_s": damping_over_stiffness(sim),
+                        "force_noise": sigma,
+                        "force_noise_ratio": None if sigma is None else sigma / SENSOR_NOISE,
+                        "notes": profile.notes,
+                    })  # fmt: skip
+                    print(
+                        f"{robot:9s} {stiffness:6.0f} {task:16s} s{seed} {profile.outcome} "
+                        f"{profile.periods} periods tau {tau.value or float('nan'):.3f} truth "
+                        f"{truth:.3f} ratio {rows[-1]['tau_ratio'] or float('nan'):.2f}",
+                        flush=True,
+                    )
+    tol = TOLERANCE["tracking_time_constant"]
+    summary: dict[str, Any] = {}
+    robot_wide: dict[str, Any] = {}
+    for robot in ROBOTS:
+        for stiffness in IN_RANGE[robot]:
+            cell = [r for r in rows if r["robot"] == robot and r["stiffness_setting"] == stiffness]
+            ratios = [r["tau_ratio"] for r in cell if r["tau_ratio"] is not None]
+            noise = [r["force_noise_ratio"] for r in cell if r["force_noise_ratio"] is not None]
+            summary[f"{robot}:{stiffness:g}"] = {
+                "calibrations": len(cell),
+                "tau_measured": len(ratios),
+                "tau_within_20pct": sum(abs(x - 1) <= tol for x in ratios),
+                "tau_ratio_median": statistics.median(ratios) if ratios else None,
+                "tau_ratio_range": [min(ratios), max(ratios)] if ratios else None,
+                "force_noise_within_20pct": sum(abs(x - 1) <= 0.2 for x in noise),
+                "robot_time_s_max": max(r["robot_time_s"] for r in cell),
+                "outcomes": dict(_count(r["outcome"] for r in cell)),
+            }
+            # one calibration per robot (the drawer's posture, first seed) for every task
+            wide = next(r for r in cell if r["task"] == ROBOT_WIDE_POSTURE)
+            truths = {r["task"]: r["tau_truth"] for r in cell}
+            robot_wide[f"{robot}:{stiffness:g}"] = {
+                "tau": wide["tau"],
+                "ratio_by_task": {
+                    task: None if wide["tau"] is None else wide["tau"] / truth
+                    for task, truth in truths.items()
+                },
+            }
+    misses = [
+        f"{r['robot']}:{r['stiffness_setting']:g} {r['task']} seed {r['seed']}: "
+        + (f"{r['tau_ratio']:.2f} x truth" if r["tau_ratio"] is not None else r["tau_reason"])
+        for r in rows
+        if r["tau_ratio"] is None or abs(r["tau_ratio"] - 1) > tol
+    ]
+    wide_misses = [
+        f"{key} {task}: {ratio:.2f} x truth" if ratio is not None else f"{key} {task}: unmeasured"
+        for key, entry in robot_wide.items()
+        for task, ratio in entry["ratio_by_task"].items()
+        if ratio is None or abs(ratio - 1) > tol
+    ]
+    return {
+        "config": {
+            "seeds": seeds,
+            "stiffnesses_N_per_m": IN_RANGE,
+            "tasks": list(TASKS),
+            "sensor_noise_N": SENSOR_NOISE,
+            "free_space": vars(FreeSpaceConfig()),
+            "robot_wide_posture": ROBOT_WIDE_POSTURE,
+        },
+        "must_shows": {
+            "tau_within_20pct": {
+                "calibrations": len(rows),
+                "within": len(rows) - len(misses),
+                "held": not misses,
+                "misses": misses,
+            },
+            "robot_wide_tau_within_20pct": {
+                "pairs": sum(len(e["ratio_by_task"]) for e in robot_wide.values()),
+                "held": not wide_misses,
+                "misses": wide_misses,
+            },
+            "robot_time_s_max": max(r["robot_time_s"] for r in rows),
+        },
+        "summary": summary,
+        "robot_wide": robot_wide,
+        "calibrations": rows,
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
     parser.add_argument("--seeds", type=int, default=5, help="sensor-noise seeds per cell")
@@ -596,10 +740,22 @@ def main() -> None:
         action="store_true",
         help="only the stiffness against the tool-point truth, in each robot's variant range",
     )
+    parser.add_argument(
+        "--free-space",
+        action="store_true",
+        help="only the free-space calibration's tau against the simulators' (module docstring)",
+    )
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
     start = time.perf_counter()
+    if args.free_space:
+        out = free_space_sweep(args.seeds)
+        out["wall_time_s"] = time.perf_counter() - start
+        write_results(args.out, out)
+        print(f"wrote {args.out}")
+        print(json.dumps(out["must_shows"], indent=1))
+        return
     if args.tool_point:
         out = tool_point(args.seeds)
         out["wall_time_s"] = time.perf_counter() - start

@@ -3,7 +3,7 @@ robot profile from `cap calibrate`, against the same robot reporting everything;
 frozen force sensors on both.
 
     python benchmarks/stripped_robot.py [--seeds 5] [--sections stripped,dead_sensor]
-        [--out benchmarks/results/stripped_robot.json]
+        [--free-space TASK|none] [--out benchmarks/results/stripped_robot.json]
 
 Profiles: one calibration (control.calibrate.calibrate, default settings, pushing in the
 task's workplane as `cap calibrate` does) per robot and task, on the task's preset object (not
@@ -11,6 +11,11 @@ randomized), seed 0, through an adapter exposing only the required members: the 
 user would make once per robot and grasp. With `--fixture
 ROBOT=TASK`, one calibration of ROBOT holding TASK's object serves every task (a user who
 calibrates once per robot, on an object where every quantity can be measured).
+`--free-space TASK` (default drawer-opening; "none": off): first one free-space calibration
+per robot (control.calibrate.calibrate_free_space, through the same adapter) at TASK's grasp
+posture with the simulator's contacts off (the hand holding nothing), given to every task's
+calibration as `free_space_profile`: its tracking time constant serves where the task's pushes
+leave tau unmeasured (a user's order: free space once, then each grasp).
 
 Section "stripped" (on the randomized suite of bench/sweep.py, controller `policy`, the same
 draws for each condition):
@@ -39,6 +44,7 @@ Results JSON through bench.provenance.write_results.
 from __future__ import annotations
 
 import argparse
+import copy
 import dataclasses
 import math
 import statistics
@@ -52,7 +58,7 @@ import numpy as np
 
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import suite_specs
-from constraint_aware.control.calibrate import calibrate
+from constraint_aware.control.calibrate import calibrate, calibrate_free_space
 from constraint_aware.control.executor_config import ExecutorConfig
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.robot import Robot
@@ -161,11 +167,44 @@ class DeadSensor:
         self.sim.command_pose(self.sim.read_pose())
 
 
+#: [control periods] held after the contacts go off, before a free-space calibration.
+SETTLE_FREE_PERIODS = 20
+
+
+def free_space(sim: Any) -> Any:
+    """The simulated robot with its contacts off (on a copy of its model: the cached model
+    other runs share stays as it is): the hand in free space at its grasp posture."""
+    import mujoco
+
+    model = copy.copy(sim.model)
+    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    sim.model = model
+    # let go of the object's contact forces and come to rest: the calibration starts at rest
+    for _ in range(SETTLE_FREE_PERIODS):
+        sim.command_pose(sim.commanded_pose())
+        sim.advance()
+    return sim
+
+
+def free_space_profiles(robots: tuple[str, ...], posture: str) -> dict[str, RobotProfile]:
+    """One free-space calibration per robot at `posture`'s grasp (module docstring)."""
+    out = {}
+    for robot in robots:
+        _task, sim = grasped(RunSpec(task=posture, robot=robot, seed=0))
+        out[robot] = calibrate_free_space(
+            RequiredOnly(free_space(sim)), f"{robot} / free space", setup=f"free space ({posture})"
+        )
+    return out
+
+
 def profiles(
-    robots: tuple[str, ...], fixtures: dict[str, str]
+    robots: tuple[str, ...],
+    fixtures: dict[str, str],
+    free: dict[str, RobotProfile] | None = None,
 ) -> dict[tuple[str, str], RobotProfile]:
     """One calibration per robot and task (module docstring); or, for a robot in `fixtures`,
-    one calibration on that task used for every task."""
+    one calibration on that task used for every task; each given the robot's free-space
+    profile from `free` when there is one."""
     out = {}
     for robot in robots:
         for task in TASKS:
@@ -173,7 +212,10 @@ def profiles(
             if (robot, fixture) not in out:
                 task_cfg, sim = grasped(RunSpec(task=fixture, robot=robot, seed=0))
                 out[(robot, fixture)] = calibrate(
-                    RequiredOnly(sim), f"{robot} / {fixture}", task_cfg.workplane_normal
+                    RequiredOnly(sim),
+                    f"{robot} / {fixture}",
+                    task_cfg.workplane_normal,
+                    free_space_profile=(free or {}).get(robot),
                 )
             out[(robot, task)] = out[(robot, fixture)]
     return out
@@ -327,17 +369,29 @@ def main() -> None:
         metavar="ROBOT=TASK",
         help="calibrate ROBOT once, holding TASK's object, and use that profile on every task",
     )
+    parser.add_argument(
+        "--free-space",
+        default="drawer-opening",
+        metavar="TASK",
+        help="calibrate each robot once in free space at TASK's grasp posture and give that "
+        "profile to every calibration ('none': off)",
+    )
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
     args = parser.parse_args()
+    if args.free_space != "none" and args.free_space not in TASKS:
+        parser.error(f"--free-space {args.free_space!r}: one of {', '.join(TASKS)} or none")
     robots = tuple(args.robots.split(","))
     sections = args.sections.split(",")
     fixtures = dict(item.split("=", 1) for item in args.fixture)
     start = time.perf_counter()
-    profs = profiles(robots, fixtures)
+    free = free_space_profiles(robots, args.free_space) if args.free_space != "none" else {}
+    profs = profiles(robots, fixtures, free)
     out: dict[str, Any] = {
         "seeds": args.seeds,
         "robots": list(robots),
         "fixtures": fixtures,
+        "free_space_posture": None if args.free_space == "none" else args.free_space,
+        "free_space_profiles": {r: p.to_dict() for r, p in free.items()},
         "profiles": {f"{r} / {t}": p.to_dict() for (r, t), p in profs.items()},
     }
     if "stripped" in sections:

@@ -1208,8 +1208,14 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
 
 
 # --- cap calibrate ----------------------------------------------------------------------------
+#: CalibrationConfig's fields a free-space calibration takes too (FreeSpaceConfig's).
+_FREE_SPACE_SHARED = (
+    "rest_periods", "force_limit", "contact_force", "max_stiffness", "max_periods",
+)  # fmt: skip
+
+
 def _calibrate_parser(p: argparse.ArgumentParser) -> None:
-    from constraint_aware.control.calibrate import CalibrationConfig
+    from constraint_aware.control.calibrate import CalibrationConfig, FreeSpaceConfig
 
     p.add_argument("task", choices=_task_names(), help="the simulated task whose handle is held")
     _add_robot(p, "to calibrate")
@@ -1219,13 +1225,36 @@ def _calibrate_parser(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--name", help="the robot's name in the profile (default: the robot spec)")
     p.add_argument("--out", metavar="PATH", help="write the robot profile here (.json)")
+    p.add_argument(
+        "--free-space",
+        action="store_true",
+        help="calibrate in free space instead (tau, noise; the simulated hand at the task's "
+        "grasp posture with contacts off, holding nothing): once per robot",
+    )
+    p.add_argument(
+        "--with",
+        dest="with_profile",
+        metavar="FILE",
+        help="the robot's free-space profile (from --free-space): its tracking time constant "
+        "serves where this calibration's pushes leave tau unmeasured",
+    )
     specs = add_dataclass_flags(p.add_argument_group("calibration"), CalibrationConfig)
+    free_specs = add_dataclass_flags(
+        p.add_argument_group("free-space calibration (--free-space)"),
+        FreeSpaceConfig,
+        skip=_FREE_SPACE_SHARED,
+    )
     p.add_argument("--json", metavar="PATH", help="the profile as JSON ('-' = stdout)")
-    p.set_defaults(func=cmd_calibrate, calibration_specs=specs)
+    p.set_defaults(func=cmd_calibrate, calibration_specs=specs, free_space_specs=free_specs)
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from constraint_aware.control.calibrate import CalibrationConfig, calibrate
+    from constraint_aware.control.calibrate import (
+        CalibrationConfig,
+        FreeSpaceConfig,
+        calibrate,
+        calibrate_free_space,
+    )
     from constraint_aware.control.profile import QUANTITIES
     from constraint_aware.control.simulate import RunSpec, grasped
 
@@ -1235,28 +1264,47 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise InvalidInputError(f"--noise {args.noise}: must be finite and >= 0 [N]")
     spec = RunSpec(task=args.task, seed=args.seed, robot=args.robot, sensor_noise=args.noise)
     chosen = collect(args, args.calibration_specs)
+    free_chosen = collect(args, args.free_space_specs)
+    if args.free_space and args.with_profile:
+        raise InvalidInputError("--with: a free-space calibration takes no other profile")
+    pushes_only = sorted(set(chosen) - set(_FREE_SPACE_SHARED))
+    if args.free_space and pushes_only:
+        flag = "--" + pushes_only[0].replace("_", "-")
+        raise InvalidInputError(f"{flag}: a push setting, not used with --free-space")
+    if not args.free_space and free_chosen:
+        flag = "--" + sorted(free_chosen)[0].replace("_", "-")
+        raise InvalidInputError(f"{flag}: a free-space setting, used only with --free-space")
+    free_profile = _load_profile(args.with_profile)
     task, sim = grasped(spec)
     # the calibration's force limit stays below the object's own
     chosen.setdefault("force_limit", min(CalibrationConfig.force_limit, task.force_limit))
-    config = CalibrationConfig(**chosen)
     name = args.name if args.name is not None else args.robot
     try:
-        profile = calibrate(sim, name, task.workplane_normal, config, setup=args.task)
+        if args.free_space:
+            config_free = FreeSpaceConfig(**chosen, **free_chosen)
+            _contacts_off(sim)
+            profile = calibrate_free_space(sim, name, config_free, f"free space ({args.task})")
+        else:
+            profile = calibrate(
+                sim, name, task.workplane_normal, CalibrationConfig(**chosen), setup=args.task,
+                free_space_profile=free_profile,
+            )  # fmt: skip
     except BaseException as exc:  # write what was measured, then report (Ctrl-C: 130)
         return report_partial(exc, "robot_profile", args.json, "the calibration")
     out = human(args)
     table = Table(
         title=Text(
-            f"{name} holding {args.task}: {profile.outcome}, {profile.periods} periods "
+            f"{name} {'in free space at' if args.free_space else 'holding'} {args.task}: "
+            f"{profile.outcome}, {profile.periods} periods "
             f"({profile.robot_time:.1f} s of robot time)"
         )
     )
-    for column in ("quantity", "value", "+-", "unit", "samples", "why not measured"):
+    for column in ("quantity", "value", "+-", "unit", "samples", "why not measured / from"):
         table.add_column(column, justify="left" if column[0] in "qwu" else "right")
     for key, m in profile.quantities.items():
         shown = "-" if m.value is None else f"{m.value:.4g}"
         error = "-" if m.uncertainty is None else f"{m.uncertainty:.2g}"
-        table.add_row(key, shown, error, m.unit, str(m.count), m.reason)
+        table.add_row(key, shown, error, m.unit, str(m.count), m.reason or m.source)
     out.print(table)
     out.print(Text("how each was measured: the profile's 'method' fields"), soft_wrap=True)
     out.print(Text(f"sensor convention: {profile.convention or 'not judged'}"), soft_wrap=True)
@@ -1273,6 +1321,26 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     assert set(profile.quantities) == set(QUANTITIES)
     wrong = profile.convention in ("flipped_sign", "inconsistent")
     return EXIT_OK if profile.outcome == "complete" and not wrong else EXIT_FAILED
+
+
+#: [control periods] held after the contacts go off, before a free-space calibration.
+SETTLE_FREE_PERIODS = 20
+
+
+def _contacts_off(sim: Any) -> None:
+    """The simulated robot's contacts off, on a copy of its model (the cached model other runs
+    share stays as it is): the hand in free space at its grasp posture, holding nothing."""
+    import copy
+
+    import mujoco
+
+    model = copy.copy(sim.model)
+    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    sim.model = model
+    # let go of the object's contact forces and come to rest: the calibration starts at rest
+    for _ in range(SETTLE_FREE_PERIODS):
+        sim.command_pose(sim.commanded_pose())
+        sim.advance()
 
 
 # --- parser -----------------------------------------------------------------------------------

@@ -4,7 +4,12 @@ The simulated run (`constraint_aware.control.simulate`) is imported from its mod
 brings in the simulator.
 """
 
-from constraint_aware.control.calibrate import CalibrationConfig, calibrate
+from constraint_aware.control.calibrate import (
+    CalibrationConfig,
+    FreeSpaceConfig,
+    calibrate,
+    calibrate_free_space,
+)
 from constraint_aware.control.controllers import (
     CONTROLLERS,
     POLICY_CONTROLLERS,
@@ -50,6 +55,7 @@ __all__ = [
     "DirectionController",
     "Executor",
     "ExecutorConfig",
+    "FreeSpaceConfig",
     "GoalConfig",
     "GuardsConfig",
     "LimitsConfig",
@@ -71,6 +77,7 @@ __all__ = [
     "TorquePolicyConfig",
     "Wrench",
     "calibrate",
+    "calibrate_free_space",
     "command_jump_bound",
     "make_controller",
     "max_grasp_play",

@@ -65,6 +65,11 @@ The phases (one reading per control period throughout):
      soft one (the hand moved against a rising resistance). A fit whose standard
      uncertainty exceeds TAU_RELATIVE_UNCERTAINTY of tau leaves it unmeasured.
 
+The tracking time constant is the arm controller's, not the task's: `calibrate_free_space`
+measures it (and the noise) once per robot with the hand in free space, from setpoint steps
+over a path a staircase has cleared first; given to `calibrate` as `free_space_profile`, its
+tau replaces the pushes' estimate, the `source` of the quantity naming that calibration.
+
 Safety: every reading is checked (finite force and poses, not stale, |F - F_rest| within
 `force_limit`); no setpoint is ever commanded further than `travel_limit` from where the
 calibration started; it stops after `max_periods`. On every stop, on any exception and at
@@ -110,7 +115,7 @@ from constraint_aware.errors import (
 from constraint_aware.geometry import FloatArray, in_plane
 from constraint_aware.spatial import Pose
 
-__all__ = ["CalibrationConfig", "calibrate"]
+__all__ = ["CalibrationConfig", "FreeSpaceConfig", "calibrate", "calibrate_free_space"]
 
 #: Identical wrench samples in a row that stop the calibration (a stale driver).
 STALE_SAMPLES = 3
@@ -153,6 +158,12 @@ TAU_RELATIVE_UNCERTAINTY = 0.2
 #: The deflection error per speed is at least this many standard uncertainties of tau times
 #: the stiffness (the coverage of a 3-sigma bound).
 TAU_COVERAGE = 3.0
+#: The hand is at rest for a free-space step when it moved less than this share of the step
+#: in a period.
+REST_SHARE = 0.005
+#: The share of a free-space step the arm's dry friction may hold it short by: [low, high]
+#: (a step response stalled 60 % short never reaches 63.2 % of the step).
+STALL_RANGE = (-0.2, 0.6)
 #: Periods a push needs at least (a few stairs, the way back and the settling): pushing stops
 #: when fewer remain in the budget.
 MIN_PUSH_PERIODS = 6
@@ -352,6 +363,7 @@ def calibrate(
     workplane_normal: FloatArray | tuple[float, float, float] | None = None,
     config: CalibrationConfig | None = None,
     setup: str = "",
+    free_space_profile: RobotProfile | None = None,
 ) -> RobotProfile:
     """Measure the robot's force noise and offset, stiffness, tracking time constant, grasp
     play and sensor convention (module docstring).
@@ -363,6 +375,10 @@ def calibrate(
             along the six world axes.
         config: how to push; None: CalibrationConfig's defaults.
         setup: what the hand holds, recorded in the profile.
+        free_space_profile: the same robot's free-space calibration (`calibrate_free_space`,
+            at the same control period): its tracking time constant is taken, with its
+            `source` named, in place of the pushes' estimate (noted beside it), and used for
+            the stiffness and the deflection error. None: tau from the pushes.
 
     Returns:
         The profile; its `outcome` says whether every phase ran. The robot is told to hold
@@ -378,6 +394,7 @@ def calibrate(
     if workplane_normal is not None:
         normal = np.asarray(check_unit_vector("workplane_normal", workplane_normal))
     period = check_number("robot.control_period", robot.control_period, low=0, low_open=True)
+    prior = _free_space_tau(free_space_profile, period)
     profile = RobotProfile(
         robot=name,
         quantities={q: Measurement.unmeasured(q, "not reached") for q in QUANTITY_NAMES},
@@ -390,7 +407,7 @@ def calibrate(
         start = robot.commanded_pose()
         _check_pose(start, "commanded pose")
         session = _Session(robot, cfg, start)
-        _run(session, normal, profile)
+        _run(session, normal, profile, prior)
     except _Stop as stop:
         profile.outcome = stop.outcome
         profile.notes.append(f"stopped ({stop.outcome}): {stop}")
@@ -426,7 +443,51 @@ def _mark_unreached(profile: RobotProfile, reason: str) -> None:
             profile.quantities[name] = Measurement.unmeasured(name, reason)
 
 
-def _run(session: _Session, normal: FloatArray | None, profile: RobotProfile) -> None:
+def _free_space_tau(free_space: RobotProfile | None, period: float) -> Measurement | None:
+    """The free-space profile's tracking time constant, its source named; None when there is
+    no profile or it left tau unmeasured. InvalidInputError when the profile is not a
+    RobotProfile or was calibrated at another control period."""
+    if free_space is None:
+        return None
+    if not isinstance(free_space, RobotProfile):
+        raise InvalidInputError(
+            f"free_space_profile: must be a RobotProfile, got {type(free_space).__name__}"
+        )
+    if not math.isclose(free_space.control_period, period, rel_tol=1e-6, abs_tol=1e-12):
+        raise InvalidInputError(
+            f"free_space_profile: calibrated at a control period of "
+            f"{free_space.control_period:g} s, the robot's is {period:g} s"
+        )
+    tau = free_space.quantities["tracking_time_constant"]
+    if not tau.measured:
+        return None
+    return dataclasses.replace(tau, source=tau.source or free_space.describe())
+
+
+def _time_constant_or_prior(
+    profile: RobotProfile, pushes: list[Push], period: float, prior: Measurement | None
+) -> None:
+    """tau from the free-space calibration (`prior`) when there is one, the pushes' own
+    estimate (`_time_constant`) in a note; else the pushes'. tau is the arm controller's, not
+    the task's: measured where the arm moves freely, free of the object's resistance and of
+    joints stuck under load (the accuracy of each: docs/design/calibration.md)."""
+    _time_constant(profile, pushes, period)
+    own = profile.quantities["tracking_time_constant"]
+    if prior is None:
+        return
+    pushes_say = f"{own.value:.3g} s" if own.value is not None else f"unmeasured ({own.reason})"
+    note = f"tracking_time_constant from the {prior.source}; the pushes' own: {pushes_say}"
+    if note not in profile.notes:
+        profile.notes.append(note)
+    profile.quantities["tracking_time_constant"] = prior
+
+
+def _run(
+    session: _Session,
+    normal: FloatArray | None,
+    profile: RobotProfile,
+    prior: Measurement | None = None,
+) -> None:
     robot, cfg = session.robot, session.cfg
     k_report, k_note = reported_stiffness(robot)
     tau_report, tau_note = reported_time_constant(robot)
@@ -446,11 +507,11 @@ def _run(session: _Session, normal: FloatArray | None, profile: RobotProfile) ->
             )
     period = robot.control_period
     _stiffness(profile, pushes, normal, cfg, period)
-    _time_constant(profile, pushes, period)
+    _time_constant_or_prior(profile, pushes, period, prior)
     tau = profile.value("tracking_time_constant")
     if tau is not None:  # once more, the hand's damping removed from the stretch
         _stiffness(profile, pushes, normal, cfg, period, tau)
-        _time_constant(profile, pushes, period)
+        _time_constant_or_prior(profile, pushes, period, prior)
     _deflection_error(profile, pushes, session.log, period, cfg)
     _play(profile, pushes, normal, cfg)
     _convention(profile, pushes, normal, cfg)
@@ -1080,6 +1141,352 @@ def _deflection_error(
         per_speed = max(per_speed, TAU_COVERAGE * k * tau_u)
         method += f"; at least {TAU_COVERAGE:g} x stiffness x tau's standard uncertainty"
     q["deflection_error_per_speed"] = Measurement(per_speed, 0.0, "N s/m", method, len(moving))
+
+
+# --- free space ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FreeSpaceConfig:
+    """How the free-space calibration moves (`calibrate_free_space`). Units in brackets.
+    Validated at construction (ConfigError names the field and its valid range)."""
+
+    rest_periods: int = 12  # readings at rest before the steps and again after them (>= 3)
+    force_limit: float = 20.0  # [N] |F - F_rest| above this stops the calibration
+    contact_force: float = 3.0  # [N] |F - F_rest| at which a move has met something: stop
+    max_stiffness: float = 20_000.0  # [N/m] the stiffest arm the clearance stairs are sized
+    # for: a stair blocked whole at this stiffness stays within 0.8 of the force limit
+    step: float = 0.01  # [m] the setpoint step whose response gives tau (the arm's response
+    # depends on the step's size where its joints have dry friction: step as large as the
+    # task's moves)
+    step_periods: int = 8  # [periods] the response read after each step
+    max_periods: int = 240  # the budget of control periods
+
+    def __post_init__(self) -> None:
+        n = "FreeSpaceConfig."
+        check_int(n + "rest_periods", self.rest_periods, low=3)
+        limit = check_number(n + "force_limit", self.force_limit, low=0, low_open=True, unit="N")
+        check_number(
+            n + "contact_force", self.contact_force, low=0, low_open=True, high=limit,
+            high_open=True, unit="N",
+        )  # fmt: skip
+        check_number(n + "max_stiffness", self.max_stiffness, low=0, low_open=True, unit="N/m")
+        check_number(n + "step", self.step, low=1e-4, high=0.05, unit="m")
+        check_int(n + "step_periods", self.step_periods, low=4)
+        check_int(n + "max_periods", self.max_periods, low=2 * self.rest_periods + 1)
+
+
+#: Quantities only a calibration holding an object measures.
+HELD_ONLY = (
+    "stiffness",
+    "grasp_play",
+    "deflection_error",
+    "deflection_error_per_speed",
+    "sensor_convention",
+)
+
+
+def calibrate_free_space(
+    robot: Robot,
+    name: str = "robot",
+    config: FreeSpaceConfig | None = None,
+    setup: str = "free space",
+) -> RobotProfile:
+    """Measure the force noise and offset and the tracking time constant with the hand in
+    free space (holding nothing, clear of everything by more than `config.step` along +x,
+    +y and +z): once per robot and controller setting; `calibrate(...,
+    free_space_profile=...)` takes its tau where a grasp's pushes cannot measure it.
+
+    The phases (one reading per control period, every reading checked as `calibrate`'s):
+    1. rest: `rest_periods` readings (the force offset, the noise);
+    2. per world axis +x, +y, +z: a clearance staircase out to `step` (stairs no longer than
+       0.8 (force_limit - contact_force) / max_stiffness, so an obstacle met along it stays
+       within the force limit), back to the start; then, each from rest (the hand moving
+       less than REST_SHARE x step in a period), a setpoint step out to `step` and one back,
+       at once over the path just cleared, the hand's response read for `step_periods`
+       periods after each;
+    3. rest again: `rest_periods` readings (pooled into the noise when their spread agrees).
+
+    tau per step: the arm's impedance m x'' = k (s - x) - c x' fitted to the response
+    (`fit_impedance`, the setpoint a straight line within each period), then the fitted
+    model's 63.2 % rise time for a step (c / k for a well-damped arm); tau is the mean over
+    the steps whose fit's standard uncertainty is within TAU_RELATIVE_UNCERTAINTY (the
+    per-step values are noted): one number for the three axes, as the Robot protocol's.
+    Stiffness, grasp play, deflection error and sensor convention are left unmeasured: there
+    is nothing to push against.
+
+    Safety: |F - F_rest| reaching `contact_force` during any move stops the calibration with
+    outcome "contact" (the free space was not free); the force limit, the travel (never
+    more than `step` from the start), non-finite or stale readings and the budget stop it as
+    `calibrate`'s do. On every stop, on any exception and at the end the starting setpoint is
+    commanded back and the robot is told to hold.
+
+    Args:
+        robot: a Robot at rest in free space; only its required members are used.
+        name: the robot's name, recorded in the profile.
+        config: how to move; None: FreeSpaceConfig's defaults.
+        setup: what the hand held, recorded in the profile.
+
+    Returns:
+        The profile (`outcome` "complete" or the named stop). A robot exception propagates
+        with the partial profile attached as `exc.robot_profile`.
+    """
+    if not isinstance(name, str) or not name.strip():
+        raise InvalidInputError(f"name: must be a non-empty string, got {name!r}")
+    if not isinstance(setup, str):
+        raise InvalidInputError(f"setup: must be a string, got {setup!r}")
+    cfg = config or FreeSpaceConfig()
+    period = check_number("robot.control_period", robot.control_period, low=0, low_open=True)
+    profile = RobotProfile(
+        robot=name,
+        quantities={q: Measurement.unmeasured(q, "not reached") for q in QUANTITY_NAMES},
+        control_period=period,
+        setup=setup,
+    )
+    for q in HELD_ONLY:
+        profile.quantities[q] = Measurement.unmeasured(
+            q, "a free-space calibration: nothing to push against"
+        )
+    # the session's checks and restore with the free-space limits (the push settings unused)
+    session_cfg = CalibrationConfig(
+        rest_periods=cfg.rest_periods,
+        force_limit=cfg.force_limit,
+        contact_force=cfg.contact_force,
+        push_force=0.5 * (cfg.contact_force + cfg.force_limit),
+        travel_limit=cfg.step,
+        first_push=min(4e-4, cfg.step),
+        free_travel=cfg.step,
+        max_periods=cfg.max_periods,
+    )
+    session: _Session | None = None
+    try:
+        start = robot.commanded_pose()
+        _check_pose(start, "commanded pose")
+        session = _Session(robot, session_cfg, start)
+        _run_free_space(session, cfg, profile)
+    except _Stop as stop:
+        profile.outcome = stop.outcome
+        profile.notes.append(f"stopped ({stop.outcome}): {stop}")
+        _mark_unreached(profile, f"the calibration stopped first ({stop.outcome}: {stop})")
+        _finish(robot, session, profile, wait=True)
+    except BaseException as exc:
+        profile.outcome = "error"
+        profile.notes.append(f"stopped (error): {type(exc).__name__}: {exc}")
+        _mark_unreached(profile, f"the robot raised first ({type(exc).__name__})")
+        try:
+            exc.robot_profile = profile  # type: ignore[attr-defined]
+        except AttributeError:
+            profile.notes.append("could not attach the profile to the exception")
+        _finish(robot, session, profile, wait=False)
+        raise
+    else:
+        _finish(robot, session, profile, wait=True)
+    return profile
+
+
+def _run_free_space(session: _Session, cfg: FreeSpaceConfig, profile: RobotProfile) -> None:
+    tau_report, tau_note = reported_time_constant(session.robot)
+    if tau_note:
+        profile.notes.append(tau_note)
+    rest = _rest(session, profile)
+    responses = []
+    for u in np.eye(3):
+        for i, response in enumerate(_step_response(session, cfg, u)):
+            responses.append((-u if i % 2 else u, response))
+    final = [session.step(session.home) for _ in range(cfg.rest_periods)]
+    tolerance = SETTLE_SHARE * cfg.step
+    while len(final) >= 2 and np.linalg.norm(final[1].position - final[0].position) >= tolerance:
+        final.pop(0)
+    final = final[1:]
+    if len(final) >= 3:
+        first, last = _spread(rest), _spread(final)
+        if first > 0 and 1 / POOL_RATIO <= last / first <= POOL_RATIO:
+            _noise(profile, [rest, final])
+        else:
+            profile.notes.append(
+                f"the readings at rest after the steps spread {last:.3g} N against {first:.3g} "
+                "N before them: not pooled into the noise"
+            )
+    _step_time_constant(profile, responses, session.robot.control_period)
+    if tau_report is not None:
+        profile.notes.append(f"the robot reports tracking_time_constant {tau_report:g} s")
+
+
+def _guarded_step(session: _Session, cfg: FreeSpaceConfig, target: Pose | None) -> Reading:
+    """One period toward `target`; |F - F_rest| at contact_force stops the calibration."""
+    reading = session.step(target)
+    assert session.rest_force is not None
+    change = float(np.linalg.norm(reading.force - session.rest_force))
+    if change >= cfg.contact_force:
+        raise _Stop(
+            "contact",
+            f"|F - F_rest| = {change:.2f} N >= contact_force {cfg.contact_force:g} N during a "
+            "free-space move: the hand met something",
+        )
+    return reading
+
+
+def _step_response(session: _Session, cfg: FreeSpaceConfig, u: FloatArray) -> list[list[Reading]]:
+    """Clear the path along `u` with a staircase to `step`, settle there and step back to the
+    start; then, from rest, step out to `step` and back again, each at once over the cleared
+    path: the two responses, each the readings from the settled one through `step_periods`
+    after. The first step back is not a response: the slow staircase before it leaves an arm
+    with dry friction in its joints loaded unlike a step from rest."""
+    stair = SAFE_SHARE * (cfg.force_limit - cfg.contact_force) / cfg.max_stiffness
+    depth = 0.0
+    while depth < cfg.step:
+        depth = min(depth + stair, cfg.step)
+        last = _guarded_step(session, cfg, session.at(u, depth))
+    responses = []
+    for target in (session.home, session.at(u, cfg.step), session.home):
+        last = _settle(session, cfg, last)
+        response = [last]
+        for _ in range(cfg.step_periods):
+            response.append(_guarded_step(session, cfg, target))
+        responses.append(response)
+        last = response[-1]
+    return responses[1:]
+
+
+def _settle(session: _Session, cfg: FreeSpaceConfig, last: Reading) -> Reading:
+    """Hold until the hand moved less than REST_SHARE x step in a period (at most
+    2 step_periods): the next step starts from rest, as the fitted model does."""
+    for _ in range(2 * cfg.step_periods):
+        held = _guarded_step(session, cfg, None)
+        moved = float(np.linalg.norm(held.position - last.position))
+        last = held
+        if moved < REST_SHARE * cfg.step:
+            break
+    return last
+
+
+def _step_time_constant(
+    profile: RobotProfile, responses: list[tuple[FloatArray, list[Reading]]], period: float
+) -> None:
+    """tau: the mean over the axes of the fitted impedance's 63.2 % step rise time
+    (`calibrate_free_space`)."""
+    method = (
+        "free-space setpoint steps back along x, y and z: the arm's impedance m x'' = "
+        "k (s - x) - c x' fitted to each response, tau its 63.2 % rise time for a step; the "
+        "mean over the axes"
+    )
+    values: list[tuple[float, float]] = []
+    notes: list[str] = []
+    for u, readings in responses:
+        base = readings[0]
+        drive = np.array([(r.commanded - base.commanded) @ u for r in readings])
+        position = np.array([(r.position - base.position) @ u for r in readings])
+        fit = fit_step_response(drive, position, period)
+        axis = ("+" if u.sum() > 0 else "-") + "xyz"[int(np.argmax(np.abs(u)))]
+        if fit is None:
+            notes.append(f"{axis}: the fit did not converge")
+            continue
+        b, b_u, zeta, stall, _rms = fit
+        rise = step_rise_time(b, zeta, (1.0 - math.exp(-1.0)) / (1.0 - stall))
+        if not (b_u <= TAU_RELATIVE_UNCERTAINTY * b and math.isfinite(rise)):
+            notes.append(
+                f"{axis}: c / k {b:.3g} s +- {b_u / b:.0%}, stalled {stall:.0%} short: undetermined"
+            )
+            continue
+        values.append((rise, b_u * rise / b))
+        notes.append(
+            f"{axis}: {rise:.3g} s (c / k {b:.3g} s, damping ratio {zeta:.2g}, stalled "
+            f"{stall:.0%} short)"
+        )
+    profile.notes.append("tracking time constant by axis: " + "; ".join(notes))
+    if not values:
+        profile.quantities["tracking_time_constant"] = Measurement.unmeasured(
+            "tracking_time_constant",
+            "no axis's step response determined tau within "
+            f"{TAU_RELATIVE_UNCERTAINTY:.0%} ({'; '.join(notes)})",
+            method,
+            len(responses),
+        )
+        return
+    tau = float(np.mean([v for v, _ in values]))
+    tau_u = math.sqrt(sum(e**2 for _, e in values)) / len(values)
+    profile.quantities["tracking_time_constant"] = Measurement(tau, tau_u, "s", method, len(values))
+
+
+def step_rise_time(b: float, zeta: float, level: float = 1.0 - math.exp(-1.0)) -> float:
+    """[s] the time x'' = (1 - x) / a - (b / a) x' (a = (b / (2 zeta))^2) takes from rest at
+    0 to `level` after a unit step at t = 0: the first crossing; inf when it never does.
+
+    Args:
+        b: [s] c / k, the damping over the stiffness.
+        zeta: the damping ratio b / (2 sqrt(a)), > 0.
+        level: the share of the step, > 0 (the 63.2 % rise time by default).
+    """
+    if not level < 1.0 + math.exp(-math.pi * zeta / math.sqrt(max(1.0 - zeta**2, 1e-12))):
+        return math.inf  # beyond the first overshoot (none when zeta >= 1)
+    from scipy.optimize import brentq  # here: importing the package stays light
+
+    a = (b / (2.0 * zeta)) ** 2
+    m = np.array([[0.0, 1.0], [-1.0 / a, -b / a]])
+
+    def x(t: float) -> float:
+        return 1.0 - float(_expm(m * t)[0, 0])  # from rest: x = 1 - [e^{mt} (1, 0)]_0
+
+    horizon = max(b, 2.0 * math.sqrt(a))
+    t0 = 0.0
+    for t1 in np.linspace(horizon / 50.0, 20.0 * horizon, 1000):
+        if x(float(t1)) >= level:
+            return float(brentq(lambda t: x(t) - level, t0, float(t1), xtol=1e-9 * horizon))
+        t0 = float(t1)
+    return math.inf
+
+
+def fit_step_response(
+    drive: FloatArray, position: FloatArray, period: float
+) -> tuple[float, float, float, float, float] | None:
+    """Fit x'' = ((1 - f) w - x) / a - (b / a) x' to a step response sampled once per period:
+    the impedance of `fit_impedance` with the drive w (the setpoint, a straight line between
+    samples, from rest at x = w = 0) short by a share f, the arm's dry friction holding it
+    short of the setpoint (a linear arm fits f = 0).
+
+    Args:
+        drive: (n,) [m] the setpoint along the step at each sample.
+        position: (n,) [m] the tool point along the step at each sample.
+        period: [s] between samples.
+
+    Returns:
+        (b = c / k [s], its standard error [s], the damping ratio, f, the residual RMS [m]),
+        or None when the fit fails. The damping ratio is held in DAMPING_RATIO_RANGE, f in
+        STALL_RANGE.
+    """
+    from scipy.optimize import least_squares  # here: importing the package stays light
+
+    w = np.asarray(drive, dtype=float)
+    x = np.asarray(position, dtype=float)
+
+    def residual(p: FloatArray) -> FloatArray:
+        return _impedance_response(math.exp(p[0]), math.exp(p[1]), (1.0 - p[2]) * w, period) - x
+
+    lo, hi = (math.log(z) for z in DAMPING_RATIO_RANGE)
+    best = None
+    for b0 in (0.3 * period, period, 3.0 * period):
+        try:
+            r = least_squares(
+                residual,
+                [math.log(b0), 0.0, 0.0],
+                bounds=(
+                    [math.log(1e-3 * period), lo, STALL_RANGE[0]],
+                    [math.log(30.0 * period), hi, STALL_RANGE[1]],
+                ),
+            )
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if np.isfinite(r.cost) and (best is None or r.cost < best.cost):
+            best = r
+    if best is None or not best.success:
+        return None
+    b, zeta, stall = math.exp(best.x[0]), math.exp(best.x[1]), float(best.x[2])
+    dof = max(len(x) - 3, 1)
+    rms = math.sqrt(2.0 * best.cost / len(x))
+    try:
+        cov = (2.0 * best.cost / dof) * np.linalg.inv(best.jac.T @ best.jac)
+        b_u = b * math.sqrt(max(float(cov[0, 0]), 0.0))
+    except np.linalg.LinAlgError:
+        b_u = math.inf
+    return b, b_u, zeta, stall, rms
 
 
 def fit_impedance(

@@ -3,9 +3,12 @@
 Each quantity the controllers use is a `Measurement`: its value (None when it could not be
 measured, with the reason), its standard uncertainty, its unit, how it was measured and from
 how many samples. `RobotProfile` holds them with what was calibrated, when and how long it
-took. The file is JSON (`RobotProfile.save` / `RobotProfile.load`), versioned by its "format"
-field and validated field by field at load: a `ProfileFileError` names the file and the field.
-A profile file never names another file to read.
+took. A quantity a calibration could not measure may be taken from another calibration of the
+same robot (a free-space calibration's tracking time constant: control.calibrate); its
+`source` then names that calibration, as a record only. The file is JSON (`RobotProfile.save`
+/ `RobotProfile.load`), versioned by its "format" field and validated field by field at load:
+a `ProfileFileError` names the file and the field. A profile file never makes the program read
+another file.
 """
 
 from __future__ import annotations
@@ -71,6 +74,7 @@ OUTCOMES: dict[str, str] = {
     "bad_reading": "a non-finite wrench or pose: setpoint restored, held",
     "stale_wrench": "identical wrench samples in a row (a stale driver): setpoint restored, held",
     "time_limit": "the calibration used up its period budget: setpoint restored, held",
+    "contact": "a free-space calibration's move met something: setpoint restored, held",
     "error": "the robot raised: setpoint restored where possible, held",
 }
 #: The sensor convention verdicts a profile may carry (control.probe.PROBE_VERDICTS' keys
@@ -102,6 +106,8 @@ class Measurement:
         method: how it was measured, in one sentence.
         count: how many samples (readings, pushes, periods) the estimate rests on.
         reason: why it is unmeasured ("" when measured).
+        source: "" when this calibration measured it; else the calibration it was taken
+            from (robot, date, setup, and the file when it was read from one).
     """
 
     value: float | None
@@ -110,6 +116,7 @@ class Measurement:
     method: str
     count: int = 0
     reason: str = ""
+    source: str = ""
 
     @property
     def measured(self) -> bool:
@@ -128,6 +135,7 @@ class Measurement:
             "method": self.method,
             "count": self.count,
             "reason": self.reason,
+            "source": self.source,
         }
 
 
@@ -146,6 +154,7 @@ class RobotProfile:
         setup: what the hand held while calibrating, as the user described it.
         workplane_normal: (3,) the plane the pushes were made in; None: the world axes.
         notes: what else the calibration found (ignored reports, warnings).
+        loaded_from: the file `load` read it from ("" otherwise; not written to the file).
     """
 
     robot: str
@@ -160,6 +169,7 @@ class RobotProfile:
     setup: str = ""
     workplane_normal: tuple[float, float, float] | None = None
     notes: list[str] = field(default_factory=list)
+    loaded_from: str = field(default="", compare=False)
 
     @property
     def robot_time(self) -> float:
@@ -220,7 +230,16 @@ class RobotProfile:
             raise ProfileFileError(f"{src}: JSON nested too deeply") from exc
         except ValueError as exc:  # NaN / Infinity
             raise ProfileFileError(f"{src}: {exc}") from exc
-        return cls.from_dict(data, str(src))
+        profile = cls.from_dict(data, str(src))
+        profile.loaded_from = str(src)
+        return profile
+
+    def describe(self) -> str:
+        """The calibration in one phrase: robot, date, setup and file (a Measurement's
+        `source` when a quantity is taken from it)."""
+        where = f", file {self.loaded_from}" if self.loaded_from else ""
+        setup = f", {self.setup}" if self.setup else ""
+        return f"calibration of {self.robot!r} at {self.measured_at}{setup}{where}"
 
     @classmethod
     def from_dict(cls, data: object, source: str = "profile") -> RobotProfile:
@@ -386,7 +405,7 @@ class _Checker:
         raw = quantities.get(name)
         if not isinstance(raw, dict):
             raise self.fail(label, "must be a JSON object (value, uncertainty, unit, ...)")
-        known = {"value", "uncertainty", "unit", "method", "count", "reason"}
+        known = {"value", "uncertainty", "unit", "method", "count", "reason", "source"}
         unknown = sorted(set(raw) - known)
         if unknown:
             raise self.fail(
@@ -399,14 +418,15 @@ class _Checker:
             )
         method = self.text(raw, "method")
         reason = self.text(raw, "reason")
+        source = self.text(raw, "source")
         count = self.integer(raw, "count", f"{label}.count")
         if raw.get("value") is None:
             if raw.get("uncertainty") is not None:
                 raise self.fail(f"{label}.uncertainty", "must be null when the value is null")
             if not reason.strip():
                 raise self.fail(f"{label}.reason", "must say why the value is null")
-            return Measurement(None, None, unit, method, count, reason)
+            return Measurement(None, None, unit, method, count, reason, source)
         low, low_open, high = _RANGES[name]
         value = self.number(raw, "value", low, low_open, high, f"{label}.value")
         uncertainty = self.number(raw, "uncertainty", 0.0, False, None, f"{label}.uncertainty")
-        return Measurement(value, uncertainty, unit, method, count, reason)
+        return Measurement(value, uncertainty, unit, method, count, reason, source)

@@ -1,0 +1,276 @@
+"""The free-space calibration (control.calibrate.calibrate_free_space) and a grasp's calibration
+taking its tracking time constant (`calibrate(..., free_space_profile=...)`)."""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from constraint_aware.control.calibrate import (
+    FreeSpaceConfig,
+    calibrate,
+    calibrate_free_space,
+    step_rise_time,
+)
+from constraint_aware.control.profile import RobotProfile
+from constraint_aware.errors import ConfigError, InvalidInputError
+from constraint_aware.spatial import Pose, Wrench
+
+
+class ImpedanceArm:
+    """A tool point obeying m x'' = k (s - x) - c x' + F_wall per axis, the setpoint s moved
+    along a straight line over each control period; optionally a wall (a stiff spring) the
+    hand meets at `wall` [m] from the start along +y. The wrench is the wall's action on the
+    hand (the Robot protocol's sign) plus Gaussian noise. Records commands and holds."""
+
+    control_period = 0.1
+    substeps = 200
+
+    def __init__(
+        self,
+        k: float = 1000.0,
+        c: float = 150.0,
+        m: float = 2.0,
+        noise: float = 0.1,
+        wall: float | None = None,
+        wall_stiffness: float = 20_000.0,
+        seed: int = 0,
+    ) -> None:
+        self.k, self.c, self.m = k, c, m
+        self.noise = noise
+        self.wall, self.wall_stiffness = wall, wall_stiffness
+        self.rng = np.random.default_rng(seed)
+        self.start = np.array([0.4, 0.0, 0.5])
+        self.x = self.start.copy()
+        self.v = np.zeros(3)
+        self.s = self.start.copy()
+        self.goal = self.start.copy()
+        self.commands: list[np.ndarray] = []
+        self.true_forces: list[float] = []
+        self.holds = 0
+
+    def wall_force(self) -> np.ndarray:
+        f = np.zeros(3)
+        if self.wall is not None:
+            depth = (self.x - self.start)[1] - self.wall
+            if depth > 0:
+                f[1] = -self.wall_stiffness * depth
+        return f
+
+    def read_wrench(self) -> Wrench:
+        return Wrench(self.wall_force() + self.noise * self.rng.normal(size=3), np.zeros(3))
+
+    def read_pose(self) -> Pose:
+        return Pose(self.x.copy(), Rotation.identity())
+
+    def commanded_pose(self) -> Pose:
+        return Pose(self.s.copy(), Rotation.identity())
+
+    def command_pose(self, pose: Pose) -> None:
+        self.goal = np.asarray(pose.position, dtype=float).copy()
+        self.commands.append(self.goal.copy())
+
+    def advance(self) -> None:
+        dt = self.control_period / self.substeps
+        origin = self.s.copy()
+        for i in range(self.substeps):
+            setpoint = origin + (self.goal - origin) * (i + 1) / self.substeps
+            a = (self.k * (setpoint - self.x) - self.c * self.v + self.wall_force()) / self.m
+            self.v = self.v + a * dt
+            self.x = self.x + self.v * dt
+        self.s = self.goal.copy()
+        self.true_forces.append(float(np.linalg.norm(self.wall_force())))
+
+    def grasp_contact(self) -> bool | None:
+        return None  # the Robot protocol's "cannot tell"
+
+    def hold(self) -> None:
+        self.holds += 1
+
+    def rise_time(self) -> float:
+        """[s] the truth: the 63.2 % rise time of a step."""
+        b = self.c / self.k
+        return step_rise_time(b, b / (2.0 * math.sqrt(self.m / self.k)))
+
+
+@pytest.mark.parametrize(("k", "c", "m"), [(1000.0, 150.0, 2.0), (4000.0, 300.0, 1.5)])
+def test_free_space_recovers_the_step_rise_time_and_the_noise(k: float, c: float, m: float) -> None:
+    arm = ImpedanceArm(k=k, c=c, m=m)
+    profile = calibrate_free_space(arm, "arm")
+    assert profile.outcome == "complete"
+    tau = profile.quantities["tracking_time_constant"]
+    assert tau.value == pytest.approx(arm.rise_time(), rel=0.05)
+    assert tau.value is not None and tau.uncertainty is not None
+    assert tau.uncertainty < 0.2 * tau.value
+    assert profile.value("force_noise") == pytest.approx(0.1, rel=0.2)
+    for name in ("stiffness", "grasp_play", "deflection_error", "sensor_convention"):
+        assert "free-space" in profile.quantities[name].reason
+    # never further than the step from the start; the starting setpoint back, held
+    offsets = [float(np.linalg.norm(p - arm.start)) for p in arm.commands]
+    assert max(offsets) <= FreeSpaceConfig().step * (1 + 1e-9)
+    assert np.allclose(arm.commands[-1], arm.start)
+    assert arm.holds == 1
+
+
+def test_a_fitted_stall_is_friction_not_slowness() -> None:
+    """An arm held short of each step by dry friction: the rise time to 63.2 % of the step is
+    what the model with the stall gives, not the linear model's slower fit."""
+    b, zeta, stall = 0.15, 1.2, 0.12
+    level = (1.0 - math.exp(-1.0)) / (1.0 - stall)
+    assert step_rise_time(b, zeta, level) > step_rise_time(b, zeta)
+    assert step_rise_time(b, zeta, 1.5) == math.inf
+
+
+def test_a_contact_during_a_free_space_move_stops_it_and_holds() -> None:
+    """A stiff wall 3 mm away along +y: the clearance staircase meets it, the calibration
+    stops with 'contact' before the step, the force stays within the force limit, the start
+    is commanded back and the robot told to hold."""
+    arm = ImpedanceArm(wall=0.003, wall_stiffness=20_000.0)
+    cfg = FreeSpaceConfig()
+    profile = calibrate_free_space(arm, "arm", cfg)
+    assert profile.outcome == "contact"
+    assert any("contact" in note for note in profile.notes)
+    assert max(arm.true_forces) < cfg.force_limit
+    assert np.allclose(arm.commands[-1], arm.start)
+    assert arm.holds == 1
+    tau = profile.quantities["tracking_time_constant"]
+    assert tau.value is None and "contact" in tau.reason
+    # no step at once into the wall: along +y only stairs before the stop
+    ys = [float((p - arm.start)[1]) for p in arm.commands]
+    stair = 0.8 * (cfg.force_limit - cfg.contact_force) / cfg.max_stiffness
+    assert max(ys) < cfg.step
+    assert all(b - a <= stair * (1 + 1e-9) for a, b in itertools.pairwise(ys) if b > a)
+
+
+def test_an_exception_during_the_free_space_calibration_holds_and_carries_the_profile() -> None:
+    class Dying(ImpedanceArm):
+        def advance(self) -> None:
+            if len(self.true_forces) >= 30:
+                raise RuntimeError("the arm's driver died")
+            super().advance()
+
+    arm = Dying()
+    with pytest.raises(RuntimeError, match="driver died") as info:
+        calibrate_free_space(arm, "arm")
+    assert arm.holds == 1
+    assert np.allclose(arm.commands[-1], arm.start)
+    partial = info.value.robot_profile  # type: ignore[attr-defined]
+    assert partial.outcome == "error" and partial.value("force_noise") is not None
+
+
+def test_free_space_config_names_the_field() -> None:
+    with pytest.raises(ConfigError, match=r"FreeSpaceConfig\.step"):
+        FreeSpaceConfig(step=0.2)
+    with pytest.raises(ConfigError, match=r"FreeSpaceConfig\.contact_force"):
+        FreeSpaceConfig(contact_force=30.0)
+    with pytest.raises(InvalidInputError, match="name"):
+        calibrate_free_space(ImpedanceArm(), " ")
+
+
+# --- a grasp's calibration taking the free-space tau -----------------------------------------
+@pytest.fixture(scope="module")
+def free_profile() -> RobotProfile:
+    return calibrate_free_space(ImpedanceArm(), "arm")
+
+
+def test_a_grasp_calibration_takes_the_free_space_tau_where_its_own_is_unmeasured(
+    free_profile: RobotProfile, tmp_path: Path
+) -> None:
+    from test_calibrate import FrozenArm
+
+    path = free_profile.save(tmp_path / "free.json")
+    loaded = RobotProfile.load(path)
+    alone = calibrate(FrozenArm(), "frozen", (0.0, 0.0, 1.0))
+    assert alone.value("tracking_time_constant") is None
+    given = calibrate(FrozenArm(), "frozen", (0.0, 0.0, 1.0), free_space_profile=loaded)
+    tau = given.quantities["tracking_time_constant"]
+    assert tau.value == free_profile.value("tracking_time_constant")
+    assert str(path) in tau.source and "'arm'" in tau.source
+    assert any(n.startswith("tracking_time_constant from the calibration") for n in given.notes)
+    assert given.quantities["stiffness"].source == ""  # measured (or not) by this one
+    # the record survives the file
+    again = RobotProfile.load(given.save(tmp_path / "grasp.json"))
+    assert again.quantities["tracking_time_constant"].source == tau.source
+
+
+def test_a_free_space_profile_at_another_control_period_is_refused(
+    free_profile: RobotProfile,
+) -> None:
+    from test_calibrate import FrozenArm
+
+    other = copy.deepcopy(free_profile)
+    other.control_period = 0.05
+    with pytest.raises(InvalidInputError, match=r"free_space_profile.*control period"):
+        calibrate(FrozenArm(), "frozen", (0.0, 0.0, 1.0), free_space_profile=other)
+
+
+# --- on the simulated robots -------------------------------------------------------------------
+#: [control periods] held after the contacts go off, before a free-space calibration.
+SETTLE_FREE_PERIODS = 20
+
+
+def _contacts_off(sim: Any) -> Any:
+    import mujoco
+
+    model = copy.copy(sim.model)
+    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+    sim.model = model
+    # let go of the object's contact forces and come to rest: the calibration starts at rest
+    for _ in range(SETTLE_FREE_PERIODS):
+        sim.command_pose(sim.commanded_pose())
+        sim.advance()
+    return sim
+
+
+@pytest.mark.parametrize("robot", ["hook-hand:stiffness=1000", "jaco:stiffness=1000"])
+def test_free_space_tau_on_the_simulated_robots(robot: str) -> None:
+    from conftest import RequiredOnly
+    from constraint_aware.control.simulate import RunSpec, grasped
+
+    _task, sim = grasped(RunSpec("drawer-opening", seed=3, robot=robot, sensor_noise=0.1))
+    truth = sim.tracking_time_constant
+    stripped: Any = RequiredOnly(_contacts_off(sim))
+    profile = calibrate_free_space(stripped, robot)
+    assert profile.outcome == "complete"
+    assert profile.value("tracking_time_constant") == pytest.approx(truth, rel=0.2)
+
+
+def test_cli_free_space_then_with(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from constraint_aware.cli import main
+
+    free = tmp_path / "free.json"
+    assert main(["calibrate", "drawer-opening", "--free-space", "--out", str(free)]) == 0
+    profile = RobotProfile.load(free)
+    assert profile.value("tracking_time_constant") is not None
+    assert profile.value("stiffness") is None and profile.setup.startswith("free space")
+    grasp = tmp_path / "grasp.json"
+    code = main(["calibrate", "plate-sliding", "--with", str(free), "--out", str(grasp)])
+    assert code == 0
+    assert RobotProfile.load(grasp).value("stiffness") is not None
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["--free-space", "--push-force", "7"], "--push-force"),
+        (["--step", "0.02"], "--step"),
+        (["--free-space", "--with", "x.json"], "--with"),
+        (["--with", "missing.json"], "missing.json"),
+        (["--free-space", "--step", "0.2"], "step"),
+    ],
+)
+def test_cli_free_space_rejects_bad_input(
+    args: list[str], named: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from constraint_aware.cli import main
+
+    assert main(["calibrate", "drawer-opening", *args]) == 2
+    assert named in capsys.readouterr().err
