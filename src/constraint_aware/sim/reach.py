@@ -36,6 +36,7 @@ from constraint_aware.sim.jaco import (
     build_spec,
 )
 from constraint_aware.sim.objects import VISUAL_GROUP, object_frame
+from constraint_aware.sim.robot_adapter import rotvec
 from constraint_aware.sim.scene import OBJECT_PREFIX
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose
@@ -299,8 +300,10 @@ class JacoPlanner:
         lo, hi = self._range[:, 0], self._range[:, 1]
         target_rot = pose.orientation.as_matrix()
         best = math.inf
+        full = self._full(q)  # the frozen joints' part, the same every iteration
         for i in range(200):
-            d.qpos[:] = self._full(q)
+            full[self._arm_qpos] = q
+            d.qpos[:] = full
             mujoco.mj_kinematics(m, d)
             mujoco.mj_comPos(m, d)
             rot = d.site_xmat[self._tcp].reshape(3, 3)
@@ -410,7 +413,7 @@ class JacoPlanner:
 
 
 def _rotvec(rot: FloatArray) -> FloatArray:
-    return np.asarray(Rotation.from_matrix(rot).as_rotvec())
+    return rotvec(rot)  # numpy: scipy's Rotation costs ~10x more per matrix in the IK loop
 
 
 def _wrapped(a: FloatArray) -> FloatArray:
