@@ -1190,7 +1190,8 @@ class FreeSpaceConfig:
     # a steady speed at ramp_step per period
     ramp_step: float = 0.01  # [m] the ramp's setpoint step per control period: the
     # executor's step length, so the lag error is measured at the speed the runs move at
-    max_periods: int = 480  # the budget of control periods
+    max_periods: int = 720  # the budget of control periods (a slow arm settling after every
+    # move needs up to about 700)
 
     def __post_init__(self) -> None:
         n = "FreeSpaceConfig."
