@@ -242,6 +242,8 @@ def test_free_space_config_names_the_field() -> None:
         FreeSpaceConfig(step=0.2)
     with pytest.raises(ConfigError, match=r"FreeSpaceConfig\.contact_force"):
         FreeSpaceConfig(contact_force=30.0)
+    with pytest.raises(ConfigError, match=r"FreeSpaceConfig\.ramp_travel"):
+        FreeSpaceConfig(ramp_travel=0.5)
     with pytest.raises(InvalidInputError, match="name"):
         calibrate_free_space(ImpedanceArm(), " ")
 
@@ -364,6 +366,7 @@ def test_cli_free_space_then_with(tmp_path: Path, capsys: pytest.CaptureFixture[
         (["--free-space", "--with", "x.json"], "--with"),
         (["--with", "missing.json"], "missing.json"),
         (["--free-space", "--step", "0.2"], "step"),
+        (["--free-space", "--ramp-step", "0.05"], "ramp_step"),
     ],
 )
 def test_cli_free_space_rejects_bad_input(

@@ -67,8 +67,11 @@ The phases (one reading per control period throughout):
 
 The tracking time constant is the arm controller's, not the task's: `calibrate_free_space`
 measures it (and the noise) once per robot with the hand in free space, from setpoint steps
-over a path a staircase has cleared first; given to `calibrate` as `free_space_profile`, its
-tau replaces the pushes' estimate, the `source` of the quantity naming that calibration.
+over a path a staircase has cleared first, and the lag model's error per unit speed
+(`lag_error`) from setpoint ramps at the executor's step per period over the same path; given
+to `calibrate` as `free_space_profile`, its tau replaces the pushes' estimate, and k x its lag
+error is the deflection error per speed where no push moved the hand at a steady speed, the
+`source` of each quantity naming that calibration.
 
 Safety: every reading is checked (finite force and poses, not stale, |F - F_rest| within
 `force_limit`); no setpoint is ever commanded further than `travel_limit` from where the
@@ -379,7 +382,9 @@ def calibrate(
         free_space_profile: the same robot's free-space calibration (`calibrate_free_space`,
             at the same control period): its tracking time constant is taken, with its
             `source` named, in place of the pushes' estimate (noted beside it), and used for
-            the stiffness and the deflection error. None: tau from the pushes.
+            the stiffness and the deflection error; where no push moved the hand at a steady
+            speed, the deflection error per speed is the stiffness times its `lag_error`.
+            None: tau from the pushes.
 
     Returns:
         The profile; its `outcome` says whether every phase ran. The robot is told to hold
@@ -1232,19 +1237,21 @@ def calibrate_free_space(
     config: FreeSpaceConfig | None = None,
     setup: str = "free space",
 ) -> RobotProfile:
-    """Measure the force noise and offset and the tracking time constant with the hand in
-    free space (holding nothing, clear of everything by more than `config.step` along +x,
-    +y and +z): once per robot and controller setting; `calibrate(...,
-    free_space_profile=...)` takes its tau where a grasp's pushes cannot measure it.
+    """Measure the force noise and offset, the tracking time constant and the lag model's
+    error per speed with the hand in free space (holding nothing, clear of everything by more
+    than `config.travel` along +x, +y and +z): once per robot and controller setting;
+    `calibrate(..., free_space_profile=...)` takes its tau, and its lag error where a grasp's
+    pushes do not measure the deflection error per speed.
 
     The phases (one reading per control period, every reading checked as `calibrate`'s):
     1. rest: `rest_periods` readings (the force offset, the noise);
-    2. per world axis +x, +y, +z: a clearance staircase out to `step` (stairs no longer than
-       0.8 (force_limit - contact_force) / max_stiffness, so an obstacle met along it stays
-       within the force limit), back to the start; then, each from rest (the hand moving
-       less than REST_SHARE x step in a period), a setpoint step out to `step` and one back,
-       at once over the path just cleared, the hand's response read for `step_periods`
-       periods after each;
+    2. per world axis +x, +y, +z: a clearance staircase out to `travel` (stairs no longer
+       than 0.8 (force_limit - contact_force) / max_stiffness, so an obstacle met along it
+       stays within the force limit), a ramp back to the start; then, each from rest (the
+       hand moving less than REST_SHARE x step in a period), a setpoint step out to `step`
+       and one back, at once over the path just cleared, the hand's response read for
+       `step_periods` periods after each; a ramp out to `ramp_travel` and back, `ramp_step`
+       per period;
     3. rest again: `rest_periods` readings (pooled into the noise when their spread agrees).
 
     tau per step: the arm's impedance m x'' = k (s - x) - c x' fitted to the response
@@ -1252,12 +1259,13 @@ def calibrate_free_space(
     model's 63.2 % rise time for a step (c / k for a well-damped arm); tau is the mean over
     the steps whose fit's standard uncertainty is within TAU_RELATIVE_UNCERTAINTY (the
     per-step values are noted): one number for the three axes, as the Robot protocol's.
-    Stiffness, grasp play, deflection error and sensor convention are left unmeasured: there
-    is nothing to push against.
+    lag_error [s]: the largest |lagged deflection| over the hand's speed on the ramps while it
+    moved at a steady speed (`_lag_error`). Stiffness, grasp play, deflection error and
+    sensor convention are left unmeasured: there is nothing to push against.
 
     Safety: |F - F_rest| reaching `contact_force` during any move stops the calibration with
     outcome "contact" (the free space was not free); the force limit, the travel (never
-    more than `step` from the start), non-finite or stale readings and the budget stop it as
+    more than `travel` from the start), non-finite or stale readings and the budget stop it as
     `calibrate`'s do. On every stop, on any exception and at the end the starting setpoint is
     commanded back and the robot is told to hold.
 
