@@ -299,6 +299,7 @@ def test_a_grasp_calibration_takes_the_free_space_lag_error_where_its_pushes_lea
     assert k is not None and per_speed.value == pytest.approx(k * lag.value)
     assert per_speed.source and "'arm'" in per_speed.source
     assert "lag_error" in per_speed.method
+    assert any(n.startswith("deflection_error_per_speed from the calibration") for n in given.notes)
 
 
 def test_a_free_space_profile_at_another_control_period_is_refused(

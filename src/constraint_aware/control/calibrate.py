@@ -1160,6 +1160,10 @@ def _deflection_error(
                 ramps.count,
                 source=ramps.source,
             )
+            profile.notes.append(
+                f"deflection_error_per_speed from the {ramps.source}: stiffness x its lag_error "
+                f"{ramps.value:.3g} s ({why})"
+            )
             return
         q["deflection_error_per_speed"] = Measurement.unmeasured(
             "deflection_error_per_speed", why, method
