@@ -654,6 +654,7 @@ def free_space_sweep(seeds: int) -> dict[str, Any]:
                         "damping_over_stiffness_s": damping_over_stiffness(sim),
                         "force_noise": sigma,
                         "force_noise_ratio": None if sigma is None else sigma / SENSOR_NOISE,
+                        "lag_error_s": profile.value("lag_error"),
                         "notes": profile.notes,
                     })  # fmt: skip
                     print(
@@ -670,6 +671,7 @@ def free_space_sweep(seeds: int) -> dict[str, Any]:
             cell = [r for r in rows if r["robot"] == robot and r["stiffness_setting"] == stiffness]
             ratios = [r["tau_ratio"] for r in cell if r["tau_ratio"] is not None]
             noise = [r["force_noise_ratio"] for r in cell if r["force_noise_ratio"] is not None]
+            lags = [r["lag_error_s"] for r in cell if r["lag_error_s"] is not None]
             summary[f"{robot}:{stiffness:g}"] = {
                 "calibrations": len(cell),
                 "tau_measured": len(ratios),
@@ -678,6 +680,10 @@ def free_space_sweep(seeds: int) -> dict[str, Any]:
                 "tau_ratio_range": [min(ratios), max(ratios)] if ratios else None,
                 "force_noise_within_20pct": sum(abs(x - 1) <= 0.2 for x in noise),
                 "robot_time_s_max": max(r["robot_time_s"] for r in cell),
+                "robot_time_s_min": min(r["robot_time_s"] for r in cell),
+                "lag_error_measured": len(lags),
+                "lag_error_s_median": statistics.median(lags) if lags else None,
+                "lag_error_s_range": [min(lags), max(lags)] if lags else None,
                 "outcomes": dict(_count(r["outcome"] for r in cell)),
             }
             # one calibration per robot (the drawer's posture, first seed) for every task

@@ -14,8 +14,10 @@ calibrates once per robot, on an object where every quantity can be measured).
 `--free-space TASK` (default drawer-opening; "none": off): first one free-space calibration
 per robot (control.calibrate.calibrate_free_space, through the same adapter) at TASK's grasp
 posture with the simulator's contacts off (the hand holding nothing), given to every task's
-calibration as `free_space_profile`: its tracking time constant serves where the task's pushes
-leave tau unmeasured (a user's order: free space once, then each grasp).
+calibration as `free_space_profile`: its tracking time constant replaces the pushes' estimate,
+and its lag error (from setpoint ramps at the executor's step per period) times the task's
+stiffness gives the deflection error per speed where the task's pushes leave it unmeasured (a
+user's order: free space once, then each grasp).
 
 Section "stripped" (on the randomized suite of bench/sweep.py, controller `policy`, the same
 draws for each condition):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import copy
 import itertools
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -27,8 +28,9 @@ from constraint_aware.spatial import Pose, Wrench
 class ImpedanceArm:
     """A tool point obeying m x'' = k (s - x) - c x' + F_wall per axis, the setpoint s moved
     along a straight line over each control period; optionally a wall (a stiff spring) the
-    hand meets at `wall` [m] from the start along +y. The wrench is the wall's action on the
-    hand (the Robot protocol's sign) plus Gaussian noise. Records commands and holds."""
+    hand meets at `wall` [m] from the start along +y; optionally dry friction per axis (a real
+    arm's joints'). The wrench is the wall's action on the hand (the Robot protocol's sign)
+    plus Gaussian noise. Records commands and holds."""
 
     control_period = 0.1
     substeps = 200
@@ -42,8 +44,10 @@ class ImpedanceArm:
         wall: float | None = None,
         wall_stiffness: float = 20_000.0,
         seed: int = 0,
+        friction: float = 0.0,
     ) -> None:
         self.k, self.c, self.m = k, c, m
+        self.friction = friction  # [N] dry friction against the hand's motion (smoothed)
         self.noise = noise
         self.wall, self.wall_stiffness = wall, wall_stiffness
         self.rng = np.random.default_rng(seed)
@@ -82,7 +86,8 @@ class ImpedanceArm:
         origin = self.s.copy()
         for i in range(self.substeps):
             setpoint = origin + (self.goal - origin) * (i + 1) / self.substeps
-            a = (self.k * (setpoint - self.x) - self.c * self.v + self.wall_force()) / self.m
+            drag = self.friction * self.v / (np.abs(self.v) + 1e-4)
+            a = (self.k * (setpoint - self.x) - self.c * self.v - drag + self.wall_force()) / self.m
             self.v = self.v + a * dt
             self.x = self.x + self.v * dt
         self.s = self.goal.copy()
@@ -112,11 +117,78 @@ def test_free_space_recovers_the_step_rise_time_and_the_noise(k: float, c: float
     assert profile.value("force_noise") == pytest.approx(0.1, rel=0.2)
     for name in ("stiffness", "grasp_play", "deflection_error", "sensor_convention"):
         assert "free-space" in profile.quantities[name].reason
-    # never further than the step from the start; the starting setpoint back, held
+    # never further than the ramp's travel from the start; the starting setpoint back, held
     offsets = [float(np.linalg.norm(p - arm.start)) for p in arm.commands]
-    assert max(offsets) <= FreeSpaceConfig().step * (1 + 1e-9)
+    assert max(offsets) <= FreeSpaceConfig().travel * (1 + 1e-9)
     assert np.allclose(arm.commands[-1], arm.start)
     assert arm.holds == 1
+
+
+def _steady_trail(arm: ImpedanceArm, ramp_step: float, periods: int = 30) -> float:
+    """[m] the truth: how far the hand trails a setpoint ramping `ramp_step` per period along
+    +x once the hand's speed is steady (a fresh copy of the arm, no noise)."""
+    twin = ImpedanceArm(k=arm.k, c=arm.c, m=arm.m, noise=0.0, friction=arm.friction)
+    for i in range(1, periods + 1):
+        twin.command_pose(Pose(twin.start + np.array([i * ramp_step, 0, 0]), Rotation.identity()))
+        twin.advance()
+    return float((twin.s - twin.x)[0])
+
+
+@pytest.mark.parametrize(
+    ("k", "c", "m", "friction"),
+    [(1000.0, 150.0, 2.0, 0.0), (4000.0, 300.0, 1.5, 0.0), (1000.0, 150.0, 2.0, 0.5)],
+)
+def test_free_space_ramps_measure_the_lag_error_at_the_executors_speed(
+    k: float, c: float, m: float, friction: float
+) -> None:
+    """The lag error per speed covers what a ramp at the executor's speed leaves beyond the lag
+    credit (at most tau v) once the hand's speed is steady, and not much more (a tenth of tau:
+    the hand still settling into its speed): on a linear arm tau v is the trail; with dry
+    friction the 1 cm step rises slower than the ramp's trail, and the credit is capped at
+    the trail."""
+    arm = ImpedanceArm(k=k, c=c, m=m, friction=friction)
+    cfg = FreeSpaceConfig()
+    profile = calibrate_free_space(arm, "arm", cfg)
+    assert profile.outcome == "complete"
+    tau = profile.value("tracking_time_constant")
+    lag = profile.quantities["lag_error"]
+    assert tau is not None and lag.value is not None and lag.count >= 6
+    speed = cfg.ramp_step / arm.control_period
+    truth = max(0.0, _steady_trail(arm, cfg.ramp_step) - tau * speed) / speed  # [s]
+    assert truth <= lag.value <= truth + 0.1 * tau
+    # the setpoint ramped at the configured step per period, never past the travel
+    steps = [float(np.linalg.norm(b - a)) for a, b in itertools.pairwise(arm.commands)]
+    assert max(steps) <= cfg.step * (1 + 1e-9)
+    assert sum(math.isclose(x, cfg.ramp_step, rel_tol=1e-6) for x in steps) >= 9 * 3
+
+
+def test_a_contact_during_a_free_space_ramp_stops_it_and_holds() -> None:
+    """Something enters the cleared path once the ramps begin (a soft obstacle 25 mm out along
+    +y): the ramp stops with 'contact' at contact_force, within the force limit; the start is
+    commanded back and the robot told to hold; the lag error is not reached."""
+
+    class Intruded(ImpedanceArm):
+        def command_pose(self, pose: Pose) -> None:
+            offset = np.asarray(pose.position) - self.start
+            past_step = offset[1] > FreeSpaceConfig().step + 1e-9
+            # a setpoint move of more than 5 mm past the step: the ramp, not a stair
+            if (
+                self.wall is None
+                and past_step
+                and np.linalg.norm(offset - self.goal + self.start) > 0.005
+            ):
+                self.wall = 0.025
+            super().command_pose(pose)
+
+    arm = Intruded(wall_stiffness=300.0)
+    cfg = FreeSpaceConfig()
+    profile = calibrate_free_space(arm, "arm", cfg)
+    assert arm.wall is not None
+    assert profile.outcome == "contact"
+    assert max(arm.true_forces) < cfg.force_limit
+    assert np.allclose(arm.commands[-1], arm.start)
+    assert arm.holds == 1
+    assert profile.value("lag_error") is None
 
 
 def test_a_fitted_stall_is_friction_not_slowness() -> None:
@@ -170,6 +242,8 @@ def test_free_space_config_names_the_field() -> None:
         FreeSpaceConfig(step=0.2)
     with pytest.raises(ConfigError, match=r"FreeSpaceConfig\.contact_force"):
         FreeSpaceConfig(contact_force=30.0)
+    with pytest.raises(ConfigError, match=r"FreeSpaceConfig\.ramp_travel"):
+        FreeSpaceConfig(ramp_travel=0.5)
     with pytest.raises(InvalidInputError, match="name"):
         calibrate_free_space(ImpedanceArm(), " ")
 
@@ -198,6 +272,34 @@ def test_a_grasp_calibration_takes_the_free_space_tau_where_its_own_is_unmeasure
     # the record survives the file
     again = RobotProfile.load(given.save(tmp_path / "grasp.json"))
     assert again.quantities["tracking_time_constant"].source == tau.source
+
+
+def test_a_grasp_calibration_takes_the_free_space_lag_error_where_its_pushes_leave_it(
+    free_profile: RobotProfile, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Pushes that move the hand at a steady speed measure the deflection error per speed
+    themselves; pushes that never do (the staircases of a crank or a sliding plate) take the
+    stiffness times the free-space ramps' lag error, its source named."""
+    calibration = sys.modules[calibrate.__module__]
+    lag = free_profile.quantities["lag_error"]
+    assert lag.value is not None
+    normal = (0.0, 0.0, 1.0)
+    own = calibrate(ImpedanceArm(wall=0.001), "arm", normal, free_space_profile=free_profile)
+    assert own.value("deflection_error_per_speed") is not None
+    assert own.quantities["deflection_error_per_speed"].source == ""
+    assert own.quantities["lag_error"].source != ""  # carried as a record
+    # no push reading counts as a steady speed: the pushes leave the per-speed error unmeasured
+    monkeypatch.setattr(calibration, "steady_speed", lambda velocity, previous: False)
+    alone = calibrate(ImpedanceArm(wall=0.001), "arm", normal)
+    assert alone.value("deflection_error_per_speed") is None
+    assert "steady speed" in alone.quantities["deflection_error_per_speed"].reason
+    given = calibrate(ImpedanceArm(wall=0.001), "arm", normal, free_space_profile=free_profile)
+    per_speed = given.quantities["deflection_error_per_speed"]
+    k = given.value("stiffness")
+    assert k is not None and per_speed.value == pytest.approx(k * lag.value)
+    assert per_speed.source and "'arm'" in per_speed.source
+    assert "lag_error" in per_speed.method
+    assert any(n.startswith("deflection_error_per_speed from the calibration") for n in given.notes)
 
 
 def test_a_free_space_profile_at_another_control_period_is_refused(
@@ -265,6 +367,7 @@ def test_cli_free_space_then_with(tmp_path: Path, capsys: pytest.CaptureFixture[
         (["--free-space", "--with", "x.json"], "--with"),
         (["--with", "missing.json"], "missing.json"),
         (["--free-space", "--step", "0.2"], "step"),
+        (["--free-space", "--ramp-step", "0.05"], "ramp_step"),
     ],
 )
 def test_cli_free_space_rejects_bad_input(

@@ -128,6 +128,7 @@ def profile(period: float = 0.1, **values: float | None) -> RobotProfile:
         "sensor_convention": -1.0,
         "deflection_error": None,
         "deflection_error_per_speed": None,
+        "lag_error": None,
     }
     truth.update(values)
     quantities = {

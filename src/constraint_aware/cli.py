@@ -1236,7 +1236,8 @@ def _calibrate_parser(p: argparse.ArgumentParser) -> None:
         dest="with_profile",
         metavar="FILE",
         help="the robot's free-space profile (from --free-space): its tracking time constant "
-        "serves where this calibration's pushes leave tau unmeasured",
+        "replaces the pushes' estimate, and its lag error gives the deflection error per speed "
+        "where the pushes leave it unmeasured",
     )
     specs = add_dataclass_flags(p.add_argument_group("calibration"), CalibrationConfig)
     free_specs = add_dataclass_flags(

@@ -67,8 +67,11 @@ The phases (one reading per control period throughout):
 
 The tracking time constant is the arm controller's, not the task's: `calibrate_free_space`
 measures it (and the noise) once per robot with the hand in free space, from setpoint steps
-over a path a staircase has cleared first; given to `calibrate` as `free_space_profile`, its
-tau replaces the pushes' estimate, the `source` of the quantity naming that calibration.
+over a path a staircase has cleared first, and the lag model's error per unit speed
+(`lag_error`) from setpoint ramps at the executor's step per period over the same path; given
+to `calibrate` as `free_space_profile`, its tau replaces the pushes' estimate, and k x its lag
+error is the deflection error per speed where no push moved the hand at a steady speed, the
+`source` of each quantity naming that calibration.
 
 Safety: every reading is checked (finite force and poses, not stale, |F - F_rest| within
 `force_limit`); no setpoint is ever commanded further than `travel_limit` from where the
@@ -81,6 +84,7 @@ outcome; an exception carries the partial profile as `exc.robot_profile`.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -378,7 +382,9 @@ def calibrate(
         free_space_profile: the same robot's free-space calibration (`calibrate_free_space`,
             at the same control period): its tracking time constant is taken, with its
             `source` named, in place of the pushes' estimate (noted beside it), and used for
-            the stiffness and the deflection error. None: tau from the pushes.
+            the stiffness and the deflection error; where no push moved the hand at a steady
+            speed, the deflection error per speed is the stiffness times its `lag_error`.
+            None: tau from the pushes.
 
     Returns:
         The profile; its `outcome` says whether every phase ran. The robot is told to hold
@@ -395,6 +401,7 @@ def calibrate(
         normal = np.asarray(check_unit_vector("workplane_normal", workplane_normal))
     period = check_number("robot.control_period", robot.control_period, low=0, low_open=True)
     prior = _free_space_tau(free_space_profile, period)
+    lag_prior = _free_space_quantity(free_space_profile, "lag_error")
     profile = RobotProfile(
         robot=name,
         quantities={q: Measurement.unmeasured(q, "not reached") for q in QUANTITY_NAMES},
@@ -407,7 +414,7 @@ def calibrate(
         start = robot.commanded_pose()
         _check_pose(start, "commanded pose")
         session = _Session(robot, cfg, start)
-        _run(session, normal, profile, prior)
+        _run(session, normal, profile, prior, lag_prior)
     except _Stop as stop:
         profile.outcome = stop.outcome
         profile.notes.append(f"stopped ({stop.outcome}): {stop}")
@@ -458,10 +465,18 @@ def _free_space_tau(free_space: RobotProfile | None, period: float) -> Measureme
             f"free_space_profile: calibrated at a control period of "
             f"{free_space.control_period:g} s, the robot's is {period:g} s"
         )
-    tau = free_space.quantities["tracking_time_constant"]
-    if not tau.measured:
+    return _free_space_quantity(free_space, "tracking_time_constant")
+
+
+def _free_space_quantity(free_space: RobotProfile | None, name: str) -> Measurement | None:
+    """The free-space profile's measurement `name`, its source named; None when there is no
+    profile or it left the quantity unmeasured."""
+    if free_space is None:
         return None
-    return dataclasses.replace(tau, source=tau.source or free_space.describe())
+    m = free_space.quantities[name]
+    if not m.measured:
+        return None
+    return dataclasses.replace(m, source=m.source or free_space.describe())
 
 
 def _time_constant_or_prior(
@@ -487,6 +502,7 @@ def _run(
     normal: FloatArray | None,
     profile: RobotProfile,
     prior: Measurement | None = None,
+    lag_prior: Measurement | None = None,
 ) -> None:
     robot, cfg = session.robot, session.cfg
     k_report, k_note = reported_stiffness(robot)
@@ -512,6 +528,9 @@ def _run(
     if tau is not None:  # once more, the hand's damping removed from the stretch
         _stiffness(profile, pushes, normal, cfg, period, tau)
         _time_constant_or_prior(profile, pushes, period, prior)
+    profile.quantities["lag_error"] = lag_prior or Measurement.unmeasured(
+        "lag_error", "measured in free space only (calibrate_free_space)"
+    )
     _deflection_error(profile, pushes, session.log, period, cfg)
     _play(profile, pushes, normal, cfg)
     _convention(profile, pushes, normal, cfg)
@@ -1129,6 +1148,23 @@ def _deflection_error(
         why = "the hand never moved at a steady speed during the pushes"
         if tau is None:  # the whole lag k tau v then reads as deflection, unbounded in speed
             why = "the tracking time constant is unmeasured: no lag model to bound at speed"
+        ramps = q["lag_error"]
+        if tau is not None and ramps.value is not None:
+            # the free-space ramps measured the lag model's error per speed: at this grasp's
+            # stiffness it is a force per speed
+            q["deflection_error_per_speed"] = Measurement(
+                k * ramps.value,
+                0.0,
+                "N s/m",
+                f"stiffness x the lag_error of the {ramps.source} ({why})",
+                ramps.count,
+                source=ramps.source,
+            )
+            profile.notes.append(
+                f"deflection_error_per_speed from the {ramps.source}: stiffness x its lag_error "
+                f"{ramps.value:.3g} s ({why})"
+            )
+            return
         q["deflection_error_per_speed"] = Measurement.unmeasured(
             "deflection_error_per_speed", why, method
         )
@@ -1158,7 +1194,13 @@ class FreeSpaceConfig:
     # depends on the step's size where its joints have dry friction: step as large as the
     # task's moves)
     step_periods: int = 8  # [periods] the response read after each step
-    max_periods: int = 240  # the budget of control periods
+    ramp_travel: float = 0.04  # [m] how far the setpoint ramps (out and back) along each
+    # axis, over the path the clearance staircase cleared: long enough for the hand to reach
+    # a steady speed at ramp_step per period
+    ramp_step: float = 0.01  # [m] the ramp's setpoint step per control period: the
+    # executor's step length, so the lag error is measured at the speed the runs move at
+    max_periods: int = 720  # the budget of control periods (a slow arm settling after every
+    # move needs up to about 700)
 
     def __post_init__(self) -> None:
         n = "FreeSpaceConfig."
@@ -1171,7 +1213,16 @@ class FreeSpaceConfig:
         check_number(n + "max_stiffness", self.max_stiffness, low=0, low_open=True, unit="N/m")
         check_number(n + "step", self.step, low=1e-4, high=0.05, unit="m")
         check_int(n + "step_periods", self.step_periods, low=4)
+        check_number(n + "ramp_travel", self.ramp_travel, low=1e-3, high=0.1, unit="m")
+        check_number(
+            n + "ramp_step", self.ramp_step, low=1e-4, high=self.ramp_travel / 3, unit="m"
+        )  # at least three ramp periods: a steady speed needs two in a row
         check_int(n + "max_periods", self.max_periods, low=2 * self.rest_periods + 1)
+
+    @property
+    def travel(self) -> float:
+        """[m] the furthest the setpoint goes from the start along an axis."""
+        return max(self.step, self.ramp_travel)
 
 
 #: Quantities only a calibration holding an object measures.
@@ -1190,19 +1241,21 @@ def calibrate_free_space(
     config: FreeSpaceConfig | None = None,
     setup: str = "free space",
 ) -> RobotProfile:
-    """Measure the force noise and offset and the tracking time constant with the hand in
-    free space (holding nothing, clear of everything by more than `config.step` along +x,
-    +y and +z): once per robot and controller setting; `calibrate(...,
-    free_space_profile=...)` takes its tau where a grasp's pushes cannot measure it.
+    """Measure the force noise and offset, the tracking time constant and the lag model's
+    error per speed with the hand in free space (holding nothing, clear of everything by more
+    than `config.travel` along +x, +y and +z): once per robot and controller setting;
+    `calibrate(..., free_space_profile=...)` takes its tau, and its lag error where a grasp's
+    pushes do not measure the deflection error per speed.
 
     The phases (one reading per control period, every reading checked as `calibrate`'s):
     1. rest: `rest_periods` readings (the force offset, the noise);
-    2. per world axis +x, +y, +z: a clearance staircase out to `step` (stairs no longer than
-       0.8 (force_limit - contact_force) / max_stiffness, so an obstacle met along it stays
-       within the force limit), back to the start; then, each from rest (the hand moving
-       less than REST_SHARE x step in a period), a setpoint step out to `step` and one back,
-       at once over the path just cleared, the hand's response read for `step_periods`
-       periods after each;
+    2. per world axis +x, +y, +z: a clearance staircase out to `travel` (stairs no longer
+       than 0.8 (force_limit - contact_force) / max_stiffness, so an obstacle met along it
+       stays within the force limit), a ramp back to the start; then, each from rest (the
+       hand moving less than REST_SHARE x step in a period), a setpoint step out to `step`
+       and one back, at once over the path just cleared, the hand's response read for
+       `step_periods` periods after each; a ramp out to `ramp_travel` and back, `ramp_step`
+       per period;
     3. rest again: `rest_periods` readings (pooled into the noise when their spread agrees).
 
     tau per step: the arm's impedance m x'' = k (s - x) - c x' fitted to the response
@@ -1210,12 +1263,13 @@ def calibrate_free_space(
     model's 63.2 % rise time for a step (c / k for a well-damped arm); tau is the mean over
     the steps whose fit's standard uncertainty is within TAU_RELATIVE_UNCERTAINTY (the
     per-step values are noted): one number for the three axes, as the Robot protocol's.
-    Stiffness, grasp play, deflection error and sensor convention are left unmeasured: there
-    is nothing to push against.
+    lag_error [s]: the largest |lagged deflection| over the hand's speed on the ramps while it
+    moved at a steady speed (`_lag_error`). Stiffness, grasp play, deflection error and
+    sensor convention are left unmeasured: there is nothing to push against.
 
     Safety: |F - F_rest| reaching `contact_force` during any move stops the calibration with
     outcome "contact" (the free space was not free); the force limit, the travel (never
-    more than `step` from the start), non-finite or stale readings and the budget stop it as
+    more than `travel` from the start), non-finite or stale readings and the budget stop it as
     `calibrate`'s do. On every stop, on any exception and at the end the starting setpoint is
     commanded back and the robot is told to hold.
 
@@ -1251,7 +1305,7 @@ def calibrate_free_space(
         force_limit=cfg.force_limit,
         contact_force=cfg.contact_force,
         push_force=0.5 * (cfg.contact_force + cfg.force_limit),
-        travel_limit=cfg.step,
+        travel_limit=cfg.travel,
         first_push=min(4e-4, cfg.step),
         free_travel=cfg.step,
         max_periods=cfg.max_periods,
@@ -1288,9 +1342,12 @@ def _run_free_space(session: _Session, cfg: FreeSpaceConfig, profile: RobotProfi
         profile.notes.append(tau_note)
     rest = _rest(session, profile)
     responses = []
+    ramps: list[list[Reading]] = []
     for u in np.eye(3):
-        for i, response in enumerate(_step_response(session, cfg, u)):
+        steps, axis_ramps = _step_response(session, cfg, u)
+        for i, response in enumerate(steps):
             responses.append((-u if i % 2 else u, response))
+        ramps.extend(axis_ramps)
     final = [session.step(session.home) for _ in range(cfg.rest_periods)]
     tolerance = SETTLE_SHARE * cfg.step
     while len(final) >= 2 and np.linalg.norm(final[1].position - final[0].position) >= tolerance:
@@ -1306,6 +1363,7 @@ def _run_free_space(session: _Session, cfg: FreeSpaceConfig, profile: RobotProfi
                 "N before them: not pooled into the noise"
             )
     _step_time_constant(profile, responses, session.robot.control_period)
+    _lag_error(profile, ramps, session.robot.control_period, cfg)
     if tau_report is not None:
         profile.notes.append(f"the robot reports tracking_time_constant {tau_report:g} s")
 
@@ -1324,26 +1382,50 @@ def _guarded_step(session: _Session, cfg: FreeSpaceConfig, target: Pose | None) 
     return reading
 
 
-def _step_response(session: _Session, cfg: FreeSpaceConfig, u: FloatArray) -> list[list[Reading]]:
-    """Clear the path along `u` with a staircase to `step`, settle there and step back to the
-    start; then, from rest, step out to `step` and back again, each at once over the cleared
-    path: the two responses, each the readings from the settled one through `step_periods`
-    after. The first step back is not a response: the slow staircase before it leaves an arm
-    with dry friction in its joints loaded unlike a step from rest."""
+def _step_response(
+    session: _Session, cfg: FreeSpaceConfig, u: FloatArray
+) -> tuple[list[list[Reading]], list[list[Reading]]]:
+    """Clear the path along `u` with a staircase to `cfg.travel` and ramp back to the start;
+    then, from rest, step out to `step` and back at once, and ramp out to `ramp_travel` and
+    back, all over the cleared path. Returns the two step responses (the readings from the
+    settled one through `step_periods` after) and the three ramps (the readings from the
+    settled one through the ramp and the settling after it). The first ramp back is not a step
+    response: the slow staircase before it leaves an arm with dry friction in its joints
+    loaded unlike a step from rest."""
     stair = SAFE_SHARE * (cfg.force_limit - cfg.contact_force) / cfg.max_stiffness
     depth = 0.0
-    while depth < cfg.step:
-        depth = min(depth + stair, cfg.step)
+    while depth < cfg.travel:
+        depth = min(depth + stair, cfg.travel)
         last = _guarded_step(session, cfg, session.at(u, depth))
+    ramps = [_ramp(session, cfg, u, depth, 0.0, _settle(session, cfg, last))]
+    last = ramps[-1][-1]
     responses = []
-    for target in (session.home, session.at(u, cfg.step), session.home):
+    for target in (session.at(u, cfg.step), session.home):
         last = _settle(session, cfg, last)
         response = [last]
         for _ in range(cfg.step_periods):
             response.append(_guarded_step(session, cfg, target))
         responses.append(response)
         last = response[-1]
-    return responses[1:]
+    for start, end in ((0.0, cfg.ramp_travel), (cfg.ramp_travel, 0.0)):
+        ramps.append(_ramp(session, cfg, u, start, end, _settle(session, cfg, last)))
+        last = ramps[-1][-1]
+    return responses, ramps
+
+
+def _ramp(
+    session: _Session, cfg: FreeSpaceConfig, u: FloatArray, start: float, end: float, last: Reading
+) -> list[Reading]:
+    """From the settled reading `last` (setpoint `start` [m] along `u`), move the setpoint to
+    `end` [m] by `ramp_step` per period, then hold until the hand settles: the readings, the
+    settled one first."""
+    readings = [last]
+    periods = math.ceil(abs(end - start) / cfg.ramp_step - 1e-9)
+    for i in range(1, periods + 1):
+        depth = start + (end - start) * min(1.0, i * cfg.ramp_step / abs(end - start))
+        readings.append(_guarded_step(session, cfg, session.at(u, depth)))
+    readings.append(_settle(session, cfg, readings[-1]))
+    return readings
 
 
 def _settle(session: _Session, cfg: FreeSpaceConfig, last: Reading) -> Reading:
@@ -1404,6 +1486,57 @@ def _step_time_constant(
     tau = float(np.mean([v for v, _ in values]))
     tau_u = math.sqrt(sum(e**2 for _, e in values)) / len(values)
     profile.quantities["tracking_time_constant"] = Measurement(tau, tau_u, "s", method, len(values))
+
+
+def _lag_error(
+    profile: RobotProfile, ramps: list[list[Reading]], period: float, cfg: FreeSpaceConfig
+) -> None:
+    """lag_error [s]: over the free-space ramps' readings with the hand moving at a steady
+    speed (`steady_speed`), the largest |lagged deflection| (control.lag.LagModel with the
+    measured tau, the deflection counted from the ramp's settled start) over the hand's speed,
+    and at least TAU_COVERAGE x tau's standard uncertainty. In free space the wrench reads
+    about nothing, so the stiffness times this is the deflection model's error per unit speed
+    (`calibrate` takes it where the pushes did not measure one)."""
+    q = profile.quantities
+    tau = q["tracking_time_constant"]
+    method = (
+        f"free-space setpoint ramps of {cfg.ramp_step * 1e3:g} mm per period out to "
+        f"{cfg.ramp_travel * 1e3:g} mm and back along x, y and z: the largest |lagged "
+        "deflection| (tau credited along the hand's motion) over the hand's speed while it "
+        "moved at a steady speed"
+    )
+    if tau.value is None:
+        q["lag_error"] = Measurement.unmeasured(
+            "lag_error", "the tracking time constant is unmeasured: no lag model", method
+        )
+        return
+    rest_speed = REST_SHARE * cfg.step / period  # [m/s]
+    errors: list[float] = []
+    speeds: list[float] = []
+    for readings in ramps:
+        base = readings[0]
+        lag = LagModel(tau.value, deflection0=base.position - base.commanded)
+        previous = np.zeros(3)
+        for before, reading in itertools.pairwise(readings):
+            lag.velocity = (reading.position - before.position) / period
+            speed = float(np.linalg.norm(lag.velocity))
+            if speed >= rest_speed and steady_speed(lag.velocity, previous):
+                deflection = lag.lagged_deflection(reading.position, reading.commanded)
+                errors.append(float(np.linalg.norm(deflection)) / speed)
+                speeds.append(speed)
+            previous = lag.velocity
+    if not errors:
+        q["lag_error"] = Measurement.unmeasured(
+            "lag_error", "the hand never moved at a steady speed during the ramps", method
+        )
+        return
+    value = max(max(errors), TAU_COVERAGE * (tau.uncertainty or 0.0))
+    profile.notes.append(
+        f"lag error at a steady speed: largest {max(errors):.3g} s, median {np.median(errors):.3g}"
+        f" s over {len(errors)} readings at {min(speeds) * 1e3:.0f}-{max(speeds) * 1e3:.0f} mm/s"
+    )
+    method += f"; at least {TAU_COVERAGE:g} x tau's standard uncertainty"
+    q["lag_error"] = Measurement(value, 0.0, "s", method, len(errors))
 
 
 def step_rise_time(b: float, zeta: float, level: float = 1.0 - math.exp(-1.0)) -> float:

@@ -4,11 +4,11 @@ Each quantity the controllers use is a `Measurement`: its value (None when it co
 measured, with the reason), its standard uncertainty, its unit, how it was measured and from
 how many samples. `RobotProfile` holds them with what was calibrated, when and how long it
 took. A quantity a calibration could not measure may be taken from another calibration of the
-same robot (a free-space calibration's tracking time constant: control.calibrate); its
-`source` then names that calibration, as a record only. The file is JSON (`RobotProfile.save`
-/ `RobotProfile.load`), versioned by its "format" field and validated field by field at load:
-a `ProfileFileError` names the file and the field. A profile file never makes the program read
-another file.
+same robot (a free-space calibration's tracking time constant and lag error:
+control.calibrate); its `source` then names that calibration, as a record only. The file is
+JSON (`RobotProfile.save` / `RobotProfile.load`), versioned by its "format" field and
+validated field by field at load: a `ProfileFileError` names the file and the field. A
+profile file never makes the program read another file.
 """
 
 from __future__ import annotations
@@ -58,6 +58,12 @@ QUANTITIES: dict[str, tuple[str, str]] = {
         "N s/m",
         "the deflection model's error per hand speed on top of deflection_error (the "
         "tracking time constant's error grows with the speed)",
+    ),
+    "lag_error": (
+        "s",
+        "the tracking lag model's error per unit speed with the hand following a setpoint "
+        "ramp in free space: the largest |lagged deflection| over the hand's speed (times the "
+        "stiffness, a deflection error per speed)",
     ),
     "sensor_convention": (
         "1",
@@ -340,9 +346,10 @@ _RANGES: dict[str, tuple[float | None, bool, float | None]] = {
     "sensor_convention": (-1.0, False, 1.0),
     "deflection_error": (0.0, False, None),
     "deflection_error_per_speed": (0.0, False, None),
+    "lag_error": (0.0, False, None),
 }
 #: Quantities a profile file may leave out: read as unmeasured.
-OPTIONAL_QUANTITIES = ("deflection_error", "deflection_error_per_speed")
+OPTIONAL_QUANTITIES = ("deflection_error", "deflection_error_per_speed", "lag_error")
 
 
 class _Checker:
