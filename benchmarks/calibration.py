@@ -57,7 +57,6 @@ Results JSON through bench.provenance.write_results.
 from __future__ import annotations
 
 import argparse
-import copy
 import json
 import math
 import re
@@ -604,25 +603,6 @@ def tool_point(seeds: int) -> dict[str, Any]:
     return {"stiffnesses": IN_RANGE, "summary": summary, "rows": rows}
 
 
-#: [control periods] held after the contacts go off, before a free-space calibration.
-SETTLE_FREE_PERIODS = 20
-
-
-def free_space(sim: Any) -> Any:
-    """The simulated robot with its contacts off (a copy of its model: the cached model other
-    runs share stays as it is): the hand in free space at its grasp posture."""
-    import mujoco
-
-    model = copy.copy(sim.model)
-    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-    sim.model = model
-    # let go of the object's contact forces and come to rest: the calibration starts at rest
-    for _ in range(SETTLE_FREE_PERIODS):
-        sim.command_pose(sim.commanded_pose())
-        sim.advance()
-    return sim
-
-
 ROBOT_WIDE_POSTURE = "drawer-opening"  # the grasp posture of the robot-wide calibration
 
 
@@ -640,7 +620,7 @@ def free_space_sweep(seeds: int) -> dict[str, Any]:
                     _task, sim = grasped(spec)
                     truth = float(sim.tracking_time_constant)
                     start = time.perf_counter()
-                    profile = calibrate_free_space(RequiredMembers(free_space(sim)), spec.robot)
+                    profile = calibrate_free_space(RequiredMembers(sim.in_free_space()), spec.robot)
                     wall = time.perf_counter() - start
                     tau = profile.quantities["tracking_time_constant"]
                     sigma = profile.value("force_noise")

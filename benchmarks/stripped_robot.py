@@ -46,7 +46,6 @@ Results JSON through bench.provenance.write_results.
 from __future__ import annotations
 
 import argparse
-import copy
 import dataclasses
 import math
 import statistics
@@ -169,32 +168,15 @@ class DeadSensor:
         self.sim.command_pose(self.sim.read_pose())
 
 
-#: [control periods] held after the contacts go off, before a free-space calibration.
-SETTLE_FREE_PERIODS = 20
-
-
-def free_space(sim: Any) -> Any:
-    """The simulated robot with its contacts off (on a copy of its model: the cached model
-    other runs share stays as it is): the hand in free space at its grasp posture."""
-    import mujoco
-
-    model = copy.copy(sim.model)
-    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-    sim.model = model
-    # let go of the object's contact forces and come to rest: the calibration starts at rest
-    for _ in range(SETTLE_FREE_PERIODS):
-        sim.command_pose(sim.commanded_pose())
-        sim.advance()
-    return sim
-
-
 def free_space_profiles(robots: tuple[str, ...], posture: str) -> dict[str, RobotProfile]:
     """One free-space calibration per robot at `posture`'s grasp (module docstring)."""
     out = {}
     for robot in robots:
         _task, sim = grasped(RunSpec(task=posture, robot=robot, seed=0))
         out[robot] = calibrate_free_space(
-            RequiredOnly(free_space(sim)), f"{robot} / free space", setup=f"free space ({posture})"
+            RequiredOnly(sim.in_free_space()),
+            f"{robot} / free space",
+            setup=f"free space ({posture})",
         )
     return out
 

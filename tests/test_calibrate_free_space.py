@@ -314,23 +314,6 @@ def test_a_free_space_profile_at_another_control_period_is_refused(
 
 
 # --- on the simulated robots -------------------------------------------------------------------
-#: [control periods] held after the contacts go off, before a free-space calibration.
-SETTLE_FREE_PERIODS = 20
-
-
-def _contacts_off(sim: Any) -> Any:
-    import mujoco
-
-    model = copy.copy(sim.model)
-    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-    sim.model = model
-    # let go of the object's contact forces and come to rest: the calibration starts at rest
-    for _ in range(SETTLE_FREE_PERIODS):
-        sim.command_pose(sim.commanded_pose())
-        sim.advance()
-    return sim
-
-
 @pytest.mark.parametrize("robot", ["hook-hand:stiffness=1000", "jaco:stiffness=1000"])
 def test_free_space_tau_on_the_simulated_robots(robot: str) -> None:
     from conftest import RequiredOnly
@@ -338,7 +321,7 @@ def test_free_space_tau_on_the_simulated_robots(robot: str) -> None:
 
     _task, sim = grasped(RunSpec("drawer-opening", seed=3, robot=robot, sensor_noise=0.1))
     truth = sim.tracking_time_constant
-    stripped: Any = RequiredOnly(_contacts_off(sim))
+    stripped: Any = RequiredOnly(sim.in_free_space())
     profile = calibrate_free_space(stripped, robot)
     assert profile.outcome == "complete"
     assert profile.value("tracking_time_constant") == pytest.approx(truth, rel=0.2)

@@ -1283,7 +1283,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     try:
         if args.free_space:
             config_free = FreeSpaceConfig(**chosen, **free_chosen)
-            _contacts_off(sim)
+            sim.in_free_space()
             profile = calibrate_free_space(sim, name, config_free, f"free space ({args.task})")
         else:
             profile = calibrate(
@@ -1322,26 +1322,6 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     assert set(profile.quantities) == set(QUANTITIES)
     wrong = profile.convention in ("flipped_sign", "inconsistent")
     return EXIT_OK if profile.outcome == "complete" and not wrong else EXIT_FAILED
-
-
-#: [control periods] held after the contacts go off, before a free-space calibration.
-SETTLE_FREE_PERIODS = 20
-
-
-def _contacts_off(sim: Any) -> None:
-    """The simulated robot's contacts off, on a copy of its model (the cached model other runs
-    share stays as it is): the hand in free space at its grasp posture, holding nothing."""
-    import copy
-
-    import mujoco
-
-    model = copy.copy(sim.model)
-    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-    sim.model = model
-    # let go of the object's contact forces and come to rest: the calibration starts at rest
-    for _ in range(SETTLE_FREE_PERIODS):
-        sim.command_pose(sim.commanded_pose())
-        sim.advance()
 
 
 # --- parser -----------------------------------------------------------------------------------
