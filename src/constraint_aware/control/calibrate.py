@@ -86,6 +86,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -409,12 +410,26 @@ def calibrate(
         setup=setup,
         workplane_normal=None if normal is None else (normal[0], normal[1], normal[2]),
     )
+    return _calibration(
+        robot, cfg, profile, lambda session: _run(session, normal, profile, prior, lag_prior)
+    )
+
+
+def _calibration(
+    robot: Robot,
+    cfg: CalibrationConfig,
+    profile: RobotProfile,
+    body: Callable[[_Session], None],
+) -> RobotProfile:
+    """Run `body` on a session from the robot's commanded pose; on every end (done, a named
+    stop, an exception) the start is commanded back and the robot told to hold, and
+    `profile` says how it ended (an exception carries it as `exc.robot_profile`)."""
     session: _Session | None = None
     try:
         start = robot.commanded_pose()
         _check_pose(start, "commanded pose")
         session = _Session(robot, cfg, start)
-        _run(session, normal, profile, prior, lag_prior)
+        body(session)
     except _Stop as stop:
         profile.outcome = stop.outcome
         profile.notes.append(f"stopped ({stop.outcome}): {stop}")
@@ -1310,30 +1325,9 @@ def calibrate_free_space(
         free_travel=cfg.step,
         max_periods=cfg.max_periods,
     )
-    session: _Session | None = None
-    try:
-        start = robot.commanded_pose()
-        _check_pose(start, "commanded pose")
-        session = _Session(robot, session_cfg, start)
-        _run_free_space(session, cfg, profile)
-    except _Stop as stop:
-        profile.outcome = stop.outcome
-        profile.notes.append(f"stopped ({stop.outcome}): {stop}")
-        _mark_unreached(profile, f"the calibration stopped first ({stop.outcome}: {stop})")
-        _finish(robot, session, profile, wait=True)
-    except BaseException as exc:
-        profile.outcome = "error"
-        profile.notes.append(f"stopped (error): {type(exc).__name__}: {exc}")
-        _mark_unreached(profile, f"the robot raised first ({type(exc).__name__})")
-        try:
-            exc.robot_profile = profile  # type: ignore[attr-defined]
-        except AttributeError:
-            profile.notes.append("could not attach the profile to the exception")
-        _finish(robot, session, profile, wait=False)
-        raise
-    else:
-        _finish(robot, session, profile, wait=True)
-    return profile
+    return _calibration(
+        robot, session_cfg, profile, lambda session: _run_free_space(session, cfg, profile)
+    )
 
 
 def _run_free_space(session: _Session, cfg: FreeSpaceConfig, profile: RobotProfile) -> None:
