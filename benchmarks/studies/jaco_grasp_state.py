@@ -15,8 +15,8 @@ F_d [N] and the object's joint position after the grasp:
 - `true_point`: the recognizer replaced by the true contact point and approach (perception?);
 - `placed`: at the end of the grasp phase the simulation is reset to the placed grasp (the
   sequence's own base and corrected skill; grasp state?);
-- `rest`: at the end of the grasp phase the wrist holds where it is for 2 s more before the
-  executor reads F_d (is F_d read during a transient?).
+- `rest`: at the end of the grasp phase the wrist stays commanded where it is for 2 s more
+  before the executor reads F_d (is F_d read during a transient?).
 
 After the grasp phase it also records where the hand holds the handle: the tool point's offset
 from the true grasp pose in the grasp frame [mm] (z: along the approach) and the angle between
@@ -24,7 +24,7 @@ the hand's approach axis and the grasp's [deg].
 
 Reads the simulator's state in callbacks outside the pipeline (a study, not the product).
 Writes JSON with provenance, prints per-kind medians of the peak and of the paired
-differences against `teleported` and `sequence`.
+differences against `teleported_own_demo` and `sequence`.
 """
 
 from __future__ import annotations
@@ -102,8 +102,7 @@ def one(kind: str, index: int, mode: str, policy: ConstraintAwarePolicy) -> dict
         )
         if mode == "placed":
             sim.reset()
-        elif mode == "rest":
-            sim.hold()
+        elif mode == "rest":  # the setpoint kept (a press stays commanded)
             for _ in range(round(REST / sim.control_period)):
                 sim.advance()
 
