@@ -180,3 +180,25 @@ def test_map_in_order_keeps_the_jobs_order_on_any_executor() -> None:
         x * x for x in range(6)
     ]
     assert executor.finished[0] == (5,)  # the last job finished first
+
+
+def test_a_failed_bench_does_not_wait_for_its_side_process() -> None:
+    """An exception (or Ctrl-C) in the bench ends its side process at once instead of waiting
+    for the section it is running."""
+    import time
+
+    from constraint_aware.bench import run as bench_run
+
+    start = time.perf_counter()
+    processes: list[Any] = []
+    with (
+        pytest.raises(RuntimeError, match="the bench failed"),
+        bench_run._side_process(2) as side,
+    ):
+        side.submit(time.sleep, 60.0)
+        processes += side._processes.values()  # type: ignore[attr-defined]
+        raise RuntimeError("the bench failed")
+    for process in processes:
+        process.join(timeout=10.0)
+    assert time.perf_counter() - start < 20.0
+    assert processes and not any(process.is_alive() for process in processes)

@@ -345,10 +345,19 @@ def _side_process(workers: int) -> Iterator[Executor]:
     if workers <= 1:
         yield InProcessExecutor()
         return
-    with ProcessPoolExecutor(
+    side = ProcessPoolExecutor(
         max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=_quiet
-    ) as side:
+    )
+    try:
         yield side
+    except BaseException:
+        # the bench failed or was interrupted: do not wait for a section nobody will read
+        processes = list(getattr(side, "_processes", {}).values())
+        side.shutdown(wait=False, cancel_futures=True)
+        for process in processes:
+            process.terminate()
+        raise
+    side.shutdown(wait=True)
 
 
 def _quiet() -> None:
