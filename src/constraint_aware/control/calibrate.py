@@ -1579,13 +1579,33 @@ def fit_step_response(
         or None when the fit fails. The damping ratio is held in DAMPING_RATIO_RANGE, f in
         STALL_RANGE.
     """
-    from scipy.optimize import least_squares  # here: importing the package stays light
-
     w = np.asarray(drive, dtype=float)
     x = np.asarray(position, dtype=float)
 
     def residual(p: FloatArray) -> FloatArray:
         return _impedance_response(math.exp(p[0]), math.exp(p[1]), (1.0 - p[2]) * w, period) - x
+
+    fit = _fit_lag(residual, [0.0], [STALL_RANGE[0]], [STALL_RANGE[1]], period, len(x))
+    if fit is None:
+        return None
+    b, b_u, zeta, (stall,), rms = fit
+    return b, b_u, zeta, stall, rms
+
+
+def _fit_lag(
+    residual: Callable[[FloatArray], FloatArray],
+    start: list[float],
+    low: list[float],
+    high: list[float],
+    period: float,
+    n: int,
+) -> tuple[float, float, float, list[float], float] | None:
+    """Least squares of `residual` over (log b, log damping ratio, *rest) from three starts of
+    b (the lag per speed from fast to slow; the rest from `start`, within `low`..`high`), the
+    best of them: (b [s], its standard error [s], the damping ratio (held in
+    DAMPING_RATIO_RANGE), the rest, the residual RMS over the `n` samples), or None when every
+    start fails."""
+    from scipy.optimize import least_squares  # here: importing the package stays light
 
     lo, hi = (math.log(z) for z in DAMPING_RATIO_RANGE)
     best = None
@@ -1593,10 +1613,10 @@ def fit_step_response(
         try:
             r = least_squares(
                 residual,
-                [math.log(b0), 0.0, 0.0],
+                [math.log(b0), 0.0, *start],
                 bounds=(
-                    [math.log(1e-3 * period), lo, STALL_RANGE[0]],
-                    [math.log(30.0 * period), hi, STALL_RANGE[1]],
+                    [math.log(1e-3 * period), lo, *low],
+                    [math.log(30.0 * period), hi, *high],
                 ),
             )
         except (ValueError, np.linalg.LinAlgError):
@@ -1605,15 +1625,15 @@ def fit_step_response(
             best = r
     if best is None or not best.success:
         return None
-    b, zeta, stall = math.exp(best.x[0]), math.exp(best.x[1]), float(best.x[2])
-    dof = max(len(x) - 3, 1)
-    rms = math.sqrt(2.0 * best.cost / len(x))
+    b, zeta = math.exp(best.x[0]), math.exp(best.x[1])
+    dof = max(n - len(best.x), 1)
+    rms = math.sqrt(2.0 * best.cost / n)
     try:
         cov = (2.0 * best.cost / dof) * np.linalg.inv(best.jac.T @ best.jac)
-        b_u = b * math.sqrt(max(float(cov[0, 0]), 0.0))
+        b_u = b * math.sqrt(max(float(cov[0, 0]), 0.0))  # d b = b d(log b)
     except np.linalg.LinAlgError:
         b_u = math.inf
-    return b, b_u, zeta, stall, rms
+    return b, b_u, zeta, [float(v) for v in best.x[2:]], rms
 
 
 def fit_impedance(
@@ -1632,37 +1652,16 @@ def fit_impedance(
         (b [s], its standard error [s], the damping ratio b / (2 sqrt(a)), the residual RMS
         [m]), or None when the fit fails. The damping ratio is held in DAMPING_RATIO_RANGE.
     """
-    from scipy.optimize import least_squares  # here: importing the package stays light
-
     w = np.asarray(drive, dtype=float)
     x = np.asarray(position, dtype=float)
 
     def residual(p: FloatArray) -> FloatArray:
         return _impedance_response(math.exp(p[0]), math.exp(p[1]), w, period) - x
 
-    lo, hi = (math.log(z) for z in DAMPING_RATIO_RANGE)
-    best = None
-    for b0 in (0.3 * period, period, 3.0 * period):  # lag per speed from fast to slow
-        try:
-            r = least_squares(
-                residual,
-                [math.log(b0), 0.0],
-                bounds=([math.log(1e-3 * period), lo], [math.log(30.0 * period), hi]),
-            )
-        except (ValueError, np.linalg.LinAlgError):
-            continue
-        if np.isfinite(r.cost) and (best is None or r.cost < best.cost):
-            best = r
-    if best is None or not best.success:
+    fit = _fit_lag(residual, [], [], [], period, len(x))
+    if fit is None:
         return None
-    b, zeta = math.exp(best.x[0]), math.exp(best.x[1])
-    dof = max(len(x) - 2, 1)
-    rms = math.sqrt(2.0 * best.cost / len(x))
-    try:
-        cov = (2.0 * best.cost / dof) * np.linalg.inv(best.jac.T @ best.jac)
-        b_u = b * math.sqrt(max(float(cov[0, 0]), 0.0))  # d b = b d(log b)
-    except np.linalg.LinAlgError:
-        b_u = math.inf
+    b, b_u, zeta, _, rms = fit
     return b, b_u, zeta, rms
 
 
