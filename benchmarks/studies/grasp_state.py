@@ -54,20 +54,31 @@ def _object_back(sim: Any) -> None:
     mujoco.mj_forward(sim.model, sim.data)
 
 
+class TruePoint:
+    """A recognizer that answers the placed object's true contact point and approach (for
+    the hand point `near` (3,) [m]), whatever the camera saw: the perception factor removed."""
+
+    name = "true-point"
+
+    def __init__(self, task: Any, near: Any) -> None:
+        self.task, self.near = task, np.asarray(near, dtype=float)
+
+    def recognize(self, height: Any, frame: Any, shape: str) -> Recognition:
+        point, approach = contact_label(self.task, shape, self.near)
+        return Recognition(point, approach, self.name)
+
+
 def one(kind: str, index: int, mode: str, policy: ConstraintAwarePolicy) -> dict[str, Any]:
     k = KINDS.index(kind)
     place = random_placement(kind, np.random.default_rng([0, k, index]))
     skill = _demo_skill(place, np.random.default_rng([0, k, index, 2]), HandOffset())
     moved: dict[str, float] = {}
 
-    class TruePoint:
-        name = "true-point"
-
-        def recognize(self, height: Any, frame: Any, shape: str) -> Recognition:
-            point, approach = contact_label(place.task, shape, np.asarray(skill.start_position))
-            return Recognition(point, approach, self.name)
-
-    recognizer: Recognizer = TruePoint() if mode == "true_point" else make_recognizer("cnn")
+    recognizer: Recognizer = (
+        TruePoint(place.task, skill.start_position)
+        if mode == "true_point"
+        else make_recognizer("cnn")
+    )
 
     def on_phase(name: str, sim: Any) -> None:
         if name != "grasp":

@@ -1,6 +1,6 @@
 """Where the Jaco's end-to-end peak force on plates and poles comes from, one factor at a time.
 
-    nice -n 10 python benchmarks/studies/jaco_grasp_state.py [--kinds plate,pole] [--per-kind 8]
+    nice -n 10 python -m benchmarks.studies.jaco_grasp_state [--kinds plate,pole] [--per-kind 8]
         [--out FILE.json]
 
 On the end-to-end benchmark's placements (bench/endtoend.py: the same draws), each kind runs
@@ -35,16 +35,16 @@ from typing import Any
 
 import numpy as np
 
+from benchmarks.studies.grasp_state import TruePoint
 from constraint_aware.bench.endtoend import _demo_skill
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.control.record import RunRecord
 from constraint_aware.geometry import angle_deg
 from constraint_aware.lfo.execute import execute
-from constraint_aware.lfo.grasp_data import contact_label
 from constraint_aware.lfo.sequence import run_in_simulation
 from constraint_aware.lfo.synthetic import HandOffset, random_placement
 from constraint_aware.policy import ConstraintAwarePolicy
-from constraint_aware.recognizer import Recognition, Recognizer, make_recognizer
+from constraint_aware.recognizer import Recognizer, make_recognizer
 from constraint_aware.sim.tasks import KINDS
 
 HERE = Path(__file__).parent
@@ -80,14 +80,11 @@ def one(kind: str, index: int, mode: str, policy: ConstraintAwarePolicy) -> dict
                             robot="jaco")  # fmt: skip
         return {**head, **_row(record)}
 
-    class TruePoint:
-        name = "true-point"
-
-        def recognize(self, height: Any, frame: Any, shape: str) -> Recognition:
-            point, approach = contact_label(place.task, shape, np.asarray(own.start_position))
-            return Recognition(point, approach, self.name)
-
-    recognizer: Recognizer = TruePoint() if mode == "true_point" else make_recognizer("cnn")
+    recognizer: Recognizer = (
+        TruePoint(place.task, own.start_position)
+        if mode == "true_point"
+        else make_recognizer("cnn")
+    )
     moved: dict[str, Any] = {}
 
     def on_phase(name: str, sim: Any) -> None:
