@@ -308,7 +308,7 @@ class JacoPlanner:
             mujoco.mj_comPos(m, d)
             rot = d.site_xmat[self._tcp].reshape(3, 3)
             err = np.concatenate(
-                [pose.position - d.site_xpos[self._tcp], _rotvec(target_rot @ rot.T)]
+                [pose.position - d.site_xpos[self._tcp], rotvec(target_rot @ rot.T)]
             )
             if float(np.linalg.norm(err[:3])) < 1e-4 and float(np.linalg.norm(err[3:])) < 1e-3:
                 return np.asarray(q, dtype=float)
@@ -410,10 +410,6 @@ class JacoPlanner:
         if not out:
             out.append((poses[0], qs[0]))
         return out
-
-
-def _rotvec(rot: FloatArray) -> FloatArray:
-    return rotvec(rot)  # numpy: scipy's Rotation costs ~10x more per matrix in the IK loop
 
 
 def _wrapped(a: FloatArray) -> FloatArray:
