@@ -14,8 +14,9 @@ after the other: the load average is recorded, and on a loaded machine the share
 not their number, sets it) and by the CPU critical path (this process's CPU time plus the
 busiest worker's: the wall time on otherwise idle cores, each worker on its own); and whether
 every results.json is the first one's except for the wall times and the worker count (text of
-the canonical JSON, so NaN compares equal to NaN; where not, the differing paths). The CPU
-time of the bench's side process (the rendering sections) is reported apart.
+the canonical JSON, so NaN compares equal to NaN; where not, the differing paths). On the
+local cluster the rendering sections are the workers' tasks (their CPU is in the workers');
+on the local pool they run in a side process, whose CPU is in the children's.
 
 With `--scaling`, also the machine's own ceiling for the sweeps: the full bench's suite runs
 (`experiments.headline_specs`, 400 runs) on a process pool of 1 and then 2 workers, nothing
@@ -104,7 +105,7 @@ def one_bench(tmp: Path, workers: int, dask: bool) -> dict[str, Any]:
             children = resource.getrusage(resource.RUSAGE_CHILDREN)
             run_bench(tmp / name, quick=True, scheduler=cluster.scheduler_address)
             entry["main_cpu_s"] = time.process_time() - cpu
-            done = resource.getrusage(resource.RUSAGE_CHILDREN)  # the side process, joined
+            done = resource.getrusage(resource.RUSAGE_CHILDREN)  # a side process, if any
             entry["side_process_cpu_s"] = (
                 done.ru_utime + done.ru_stime - children.ru_utime - children.ru_stime
             )

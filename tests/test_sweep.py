@@ -118,9 +118,9 @@ def test_dask_local_cluster_gives_the_local_pool_results(
         distributed.LocalCluster(
             n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0"
         ) as cluster,
-        dask_executor(cluster.scheduler_address) as (executor, threads),
+        dask_executor(cluster.scheduler_address) as (executor, threads, local),
     ):
-        assert threads == 1
+        assert threads == 1 and local  # the cluster's one worker runs on this machine
         assert run_many(specs, executor=executor, quiet=True) == serial
 
 
@@ -140,21 +140,28 @@ def test_run_bench_sends_its_sweeps_to_the_scheduler(
     serial: list[dict[str, Any]],
 ) -> None:
     """run_bench(scheduler="local") starts a LocalCluster and every run_many inside goes there
-    (the whole quick bench twice is too slow for a test: benchmarks/sweep_dask.py does it)."""
+    (the whole quick bench twice is too slow for a test: benchmarks/sweep_dask.py does it),
+    and so do the rendering sections and figures, its worker being on this machine."""
     pytest.importorskip("distributed")
     from constraint_aware.bench import run as bench_run
 
     seen: dict[str, Any] = {}
 
-    def sweeps_only(out: str | Path, cfg: Any, policy: Any, source: Any, *_: Any) -> Path:
+    def sweeps_only(out: str | Path, cfg: Any, policy: Any, source: Any, *rest: Any) -> Path:
         seen["executor"] = type(sweep._CURRENT_EXECUTOR.get()).__name__
+        seen["rendering"] = type(rest[-1]).__name__
         seen["workers"] = cfg.workers
         seen["runs"] = run_many(specs[:2], quiet=True, policy=policy)
         return Path(out)
 
     monkeypatch.setattr(bench_run, "_run_bench", sweeps_only)
     bench_run.run_bench(tmp_path / "bench", quick=True, workers=1, scheduler=sweep.LOCAL_SCHEDULER)
-    assert seen == {"executor": "ClientExecutor", "workers": 1, "runs": serial[:2]}
+    assert seen == {
+        "executor": "ClientExecutor",
+        "rendering": "ClientExecutor",
+        "workers": 1,
+        "runs": serial[:2],
+    }
     assert sweep._CURRENT_EXECUTOR.get() is None  # the local pool again after the bench
 
 
@@ -202,3 +209,35 @@ def test_a_failed_bench_does_not_wait_for_its_side_process() -> None:
         process.join(timeout=10.0)
     assert time.perf_counter() - start < 20.0
     assert processes and not any(process.is_alive() for process in processes)
+
+
+def test_reuse_runs_makes_each_distinct_run_once(
+    monkeypatch: pytest.MonkeyPatch, specs: list[sweep.RunSpec], serial: list[dict[str, Any]]
+) -> None:
+    """Inside `reuse_runs` a spec asked for again (same keep_steps, same policy weights and
+    card) is served from the first run; another policy, keep_steps or spec runs; outside the
+    block nothing is kept."""
+    from constraint_aware.policy import ConstraintAwarePolicy
+
+    made: list[sweep.RunSpec] = []
+    real = sweep._run_one
+
+    def counted(args: tuple[sweep.RunSpec, bool, Any]) -> dict[str, Any]:
+        made.append(args[0])
+        return real(args)
+
+    monkeypatch.setattr(sweep, "_run_one", counted)
+    default = ConstraintAwarePolicy.load()
+    with sweep.reuse_runs():
+        first = run_many([specs[0], specs[1], specs[0]], workers=1, quiet=True)
+        assert made == specs[:2] and first == [serial[0], serial[1], serial[0]]
+        first[0]["summary"]["peak_force_N"] = -1.0  # a copy: the kept run is untouched
+        # the same default policy, passed explicitly or loaded again: the same runs
+        again = run_many(specs[:2], workers=1, quiet=True, policy=default)
+        assert made == specs[:2] and again == serial[:2]
+        other = default.with_card({**default.card, "name": "another"})
+        run_many(specs[:1], workers=1, quiet=True, policy=other)
+        run_many(specs[:1], workers=1, quiet=True, keep_steps=True)
+        assert made == [specs[0], specs[1], specs[0], specs[0]]
+    run_many(specs[:1], workers=1, quiet=True)
+    assert len(made) == 5

@@ -11,6 +11,7 @@ Both are validated at load: every problem raises `PolicyFileError` naming the fi
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import zipfile
@@ -470,6 +471,17 @@ class ConstraintAwarePolicy:
     def layers(self) -> list[tuple[FloatArray, FloatArray]]:
         """(weight (out, in), bias (out,)) per layer, the training framework's layout."""
         return [(w.T.copy(), b.copy()) for w, b in zip(self._weights, self._biases, strict=True)]
+
+    def digests(self) -> tuple[str, str]:
+        """SHA-256 hex digests of the card (canonical JSON) and of the weights (float64 bytes,
+        layer by layer in `layers` order): what tells two policies apart, whatever their
+        files are called."""
+        card = json.dumps(self.card, sort_keys=True, separators=(",", ":")).encode()
+        weights = hashlib.sha256()
+        for w, b in self.layers:
+            weights.update(w.astype("<f8").tobytes())
+            weights.update(b.astype("<f8").tobytes())
+        return hashlib.sha256(card).hexdigest(), weights.hexdigest()
 
     def with_card(self, card: dict[str, Any]) -> ConstraintAwarePolicy:
         """The same weights with another card."""

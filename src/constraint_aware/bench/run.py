@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import hashlib
 import json
 import logging
 import math
@@ -40,6 +39,7 @@ from constraint_aware.bench.sweep import (
     available_cpus,
     dask_executor,
     local_pool,
+    reuse_runs,
     use_executor,
 )
 from constraint_aware.errors import CapError
@@ -269,19 +269,15 @@ def policy_identity(policy: ConstraintAwarePolicy, source: str | Path | None) ->
     """What identifies the policy a bench ran: its card's name, where it was loaded from, and
     SHA-256 digests of its card (canonical JSON) and of its weights (float64 bytes, layer by
     layer), so two results can be told apart even when two files share a name."""
-    card = json.dumps(policy.card, sort_keys=True, separators=(",", ":")).encode()
-    weights = hashlib.sha256()
-    for w, b in policy.layers:
-        weights.update(w.astype("<f8").tobytes())
-        weights.update(b.astype("<f8").tobytes())
+    card_sha256, weights_sha256 = policy.digests()
     shipped = source is None or is_shipped(source)
     return {
         "name": policy.name,
         "source": str(source) if source is not None else policy.name,
         "shipped": shipped,
         "observation": policy.observation,
-        "card_sha256": hashlib.sha256(card).hexdigest(),
-        "weights_sha256": weights.hexdigest(),
+        "card_sha256": card_sha256,
+        "weights_sha256": weights_sha256,
     }
 
 
@@ -307,7 +303,10 @@ def run_bench(
     `out` must be new, empty or a previous bench's directory unless `force` (CapError).
     scheduler: a Dask scheduler's address, or "local" for a cluster of `workers` processes on
     this machine; the sweeps' runs then go to that cluster (through its client's executor) and
-    `workers` is its thread count. The results do not depend on it.
+    `workers` is its thread count. When every worker runs on this machine the rendering
+    sections (the paper's snapshots, the end-to-end sequences) and the figures are the
+    cluster's tasks too; otherwise they run in a side process here, where their files go.
+    The results do not depend on it.
     Everything is validated before any run or connection; `preflight` decides which sections
     are skipped, and `on_skip` receives its line for each before anything runs (default: to
     stderr); results.json lists them under "skipped" and the report names them.
@@ -318,7 +317,7 @@ def run_bench(
     skipped = preflight(cfg)
     for line in skipped.values():
         on_skip(line)
-    with _each_warning_once():
+    with _each_warning_once(), reuse_runs():
         if scheduler is None:  # one pool for every section: its workers keep their caches
             with (
                 local_pool(workers) as pool,
@@ -327,13 +326,17 @@ def run_bench(
             ):
                 return _run_bench(out, cfg, loaded, policy, skipped, pool, side)
         with (
-            dask_executor(scheduler, local_workers=workers) as (executor, threads),
+            dask_executor(scheduler, local_workers=workers) as (executor, threads, local),
             use_executor(executor),
-            _side_process(2) as side,
         ):
             cfg = dataclasses.replace(cfg, workers=threads)
-            # the figures are files here: drawn on this machine, not on the cluster
-            return _run_bench(out, cfg, loaded, policy, skipped, side, side)
+            if local:
+                # workers on this machine write to its files: the rendering sections and the
+                # figures are tasks on the cluster like the runs
+                return _run_bench(out, cfg, loaded, policy, skipped, executor, executor)
+            # a remote cluster's workers would write their files elsewhere: those run here
+            with _side_process(2) as side:
+                return _run_bench(out, cfg, loaded, policy, skipped, side, side)
 
 
 @contextlib.contextmanager

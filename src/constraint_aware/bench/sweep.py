@@ -14,9 +14,11 @@ constants, the compiled controller, the default policy) from one sweep to the ne
 from __future__ import annotations
 
 import contextlib
+import copy
 import dataclasses
 import functools
 import os
+import socket
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from contextvars import ContextVar
@@ -124,8 +126,9 @@ LOCAL_SCHEDULER = "local"
 @contextlib.contextmanager
 def dask_executor(
     address: str, timeout_s: float = 30.0, local_workers: int | None = None
-) -> Iterator[tuple[Executor, int]]:
-    """(executor, total worker threads) of the Dask cluster whose scheduler is at `address`.
+) -> Iterator[tuple[Executor, int, bool]]:
+    """(executor, total worker threads, whether every worker runs on this machine) of the Dask
+    cluster whose scheduler is at `address`.
 
     `address` "local" (LOCAL_SCHEDULER) starts a `distributed.LocalCluster` for the block:
     `local_workers` single-threaded worker processes (default: the available CPUs). Needs the
@@ -164,8 +167,10 @@ def dask_executor(
                 f"scheduler: no worker joined the cluster at {address!r} in {timeout_s} s"
             ) from exc
         threads = sum(client.nthreads().values())
+        here = socket.gethostname()
+        on_this_machine = all(h == here for h in client.run(socket.gethostname).values())
         with client.get_executor() as executor:
-            yield executor, threads
+            yield executor, threads, on_this_machine
 
 
 def gather_in_order(
@@ -266,8 +271,40 @@ def run_many(
     On `executor` if given, else on the one set by `use_executor`, else in a local process pool
     of `workers` processes (default: `default_workers`); one worker runs them in this process.
     """
-    jobs = [(s, keep_steps, policy) for s in specs]
-    return map_in_order(_run_one, jobs, workers, label, quiet, executor)
+    memo = _RUN_MEMO.get()
+    if memo is None:
+        jobs = [(s, keep_steps, policy) for s in specs]
+        return map_in_order(_run_one, jobs, workers, label, quiet, executor)
+    who = (policy or _default_policy()).digests()
+    keys = [(s, keep_steps, who) for s in specs]
+    new = list(dict.fromkeys(k for k in keys if k not in memo))
+    done = map_in_order(
+        _run_one, [(k[0], keep_steps, policy) for k in new], workers, label, quiet, executor
+    )
+    memo.update(zip(new, done, strict=True))
+    return [copy.deepcopy(memo[k]) for k in keys]
+
+
+#: The runs `run_many` has made inside a `reuse_runs` block, by (spec, keep_steps, policy
+#: digests); None outside one.
+_RUN_MEMO: ContextVar[dict[tuple[RunSpec, bool, tuple[str, str]], dict[str, Any]] | None] = (
+    ContextVar("sweep_runs", default=None)
+)
+
+
+@contextlib.contextmanager
+def reuse_runs() -> Iterator[None]:
+    """Inside the block `run_many` makes each distinct run once: a spec asked for again, with
+    the same `keep_steps` and a policy of the same card and weights, gets a copy of the first
+    run's result. A run is a function of its spec and policy alone (seeded noise and
+    randomization, deterministic physics), so the copy is what running it again gives; a
+    bench's sections share runs this way (the randomized suite on the default robot is also
+    the embodiment section's transfer on it)."""
+    token = _RUN_MEMO.set({})
+    try:
+        yield
+    finally:
+        _RUN_MEMO.reset(token)
 
 
 def success_table(results: Sequence[dict[str, Any]]) -> dict[str, dict[str, dict[str, Any]]]:
