@@ -20,7 +20,9 @@ The phases (one reading per control period throughout):
    ends when
    - |dF| reaches `contact_force`: blocked. That stair, held a period, is level A; one more
      stair, sized from the slope to add push_force - contact_force and held a period, is
-     level B;
+     level B. Where B fell short (an arm whose joints stick reads a steep jump at contact
+     and a shallower spring after it), further held stairs from B, sized from the slope
+     between A and B, while the budget leaves room for them and the way back;
    - the hand has followed the setpoint `free_travel` with |dF| below `contact_force`: free
      (the object's own motion, or play in the grasp);
    - the setpoint reaches `travel_limit`: soft (neither).
@@ -736,12 +738,12 @@ def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -
     return push
 
 
-def _safe_step(session: _Session, push: Push, df: float) -> float:
+def _safe_step(session: _Session, push: Push, df: float, slope: float | None = None) -> float:
     """[m] the largest stair that keeps |dF| within the force limit should the object block
     all of it: SAFE_SHARE of the headroom (force_limit - |dF|) over the stiffest the arm
-    may be, twice the steepest slope measured (this push's, or an earlier push's), or
-    max_stiffness before any."""
-    known = [x for x in (_contact_slope(push, session.touch), session.stiffness) if x]
+    may be, twice the steepest slope measured (this push's, `slope` [N/m] between its
+    levels, or an earlier push's), or max_stiffness before any."""
+    known = [x for x in (_contact_slope(push, session.touch), slope, session.stiffness) if x]
     bound = 2.0 * max(known) if known else session.cfg.max_stiffness
     return SAFE_SHARE * max(session.cfg.force_limit - df, 0.0) / bound
 
@@ -766,9 +768,13 @@ def _contact_slope(push: Push, touch: float) -> float | None:
 def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
     """Hold the stair that reached contact_force a period: level A. Then (when `level_b`)
     one more stair toward push_force - contact_force above A, sized from the trusted slope
-    and never beyond _safe_step or travel_limit, held a period: level B; when B is short of
-    A by less than LEVEL_SPREAD x (push_force - contact_force), one more stair sized from
-    the slope between A and B."""
+    and never beyond _safe_step or travel_limit, held a period: level B. While B is short of
+    A by less than LEVEL_SPREAD x (push_force - contact_force), the hand settled at B and
+    the budget leaves room for it and the way back, one more stair from B, held a period:
+    sized from the slope between A and B when B gained at least the touch force over A,
+    else twice the last stair (a first stair sized from a slope the arm's breakaway from
+    static friction steepened adds little: an arm whose joints stick reads a jump at
+    contact and a shallower spring after it)."""
     cfg = session.cfg
     reached = push.stairs[-1]
     held = session.step()
@@ -778,27 +784,31 @@ def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
         return
     slope = _contact_slope(push, session.touch)
     wanted = push.change(held)[0] + (cfg.push_force - cfg.contact_force)
-    for _ in range(2):
+    last_stair: float | None = None
+    while True:
         now = push.level_b or held
         df = push.change(now)[0]
         start = push.depth_b or depth
-        step = _safe_step(session, push, df)
+        step = _safe_step(session, push, df, slope)
         if slope is not None:
             step = min(step, max(wanted - df, 0.0) / slope)
+        elif last_stair is not None:
+            step = min(step, 2.0 * last_stair)
         depth_b = min(start + step, cfg.travel_limit)
-        if depth_b - start < 1e-5 or session.remaining < 2:
+        # a further stair keeps the periods the way back and the settling need
+        room = 2 if push.level_b is None else 3 + SETTLE_PERIODS
+        if depth_b - start < 1e-5 or session.remaining < room:
             return
         first = session.step(session.at(push.direction, depth_b))
         last = session.step()
         push.level_b, push.depth_b, push.before_b = last, depth_b, first
         push.settled_b = _settled(first, last, depth_b)
+        last_stair = depth_b - start
         gained = push.change(last)[0] - push.change(held)[0]
-        if gained >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
+        if gained >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force) or not push.settled_b:
             return
         ds = float(np.linalg.norm(last.stretch - held.stretch))
-        if gained < session.touch or ds <= 1e-6:
-            return
-        slope = gained / ds
+        slope = gained / ds if gained >= session.touch and ds > 1e-6 else None
 
 
 def _level_slope(push: Push) -> float | None:
