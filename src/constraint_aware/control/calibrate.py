@@ -688,13 +688,17 @@ def _pushes(
         # level B (for the stiffness) on the first blocked push, and on later ones while
         # the budget leaves room for a free push after them
         first = not any(p.level_b is not None for p in pushes)
-        push = _staircase(session, u, base, first or session.remaining >= B_ROOM)
+        # further stairs toward level B only until one push has its two levels apart
+        extend = not any(_levels_apart(p, session.cfg) for p in pushes)
+        push = _staircase(session, u, base, first or session.remaining >= B_ROOM, extend)
         pushes.append(push)
         base = push.back[-1]
     return pushes
 
 
-def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -> Push:
+def _staircase(
+    session: _Session, u: FloatArray, base: Reading, level_b: bool, extend: bool = False
+) -> Push:
     cfg = session.cfg
     push = Push(direction=u, base=base)
     depth, step = 0.0, cfg.first_push
@@ -728,7 +732,7 @@ def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -
             grow = min(grow, max((aim - df) / slope, 0.5 * step))
         step = min(grow, _safe_step(session, push, df))
     if push.kind == "blocked":
-        _levels(session, push, depth, level_b)
+        _levels(session, push, depth, level_b, extend)
         slopes = [
             x for x in (_contact_slope(push, session.touch), _level_slope(push)) if x is not None
         ]
@@ -765,16 +769,21 @@ def _contact_slope(push: Push, touch: float) -> float | None:
     return (fb - fa) / (sb - sa)
 
 
-def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
+def _levels(
+    session: _Session, push: Push, depth: float, level_b: bool, extend: bool = False
+) -> None:
     """Hold the stair that reached contact_force a period: level A. Then (when `level_b`)
     one more stair toward push_force - contact_force above A, sized from the trusted slope
     and never beyond _safe_step or travel_limit, held a period: level B. While B is short of
-    A by less than LEVEL_SPREAD x (push_force - contact_force), the hand settled at B and
-    the budget leaves room for it and the way back, one more stair from B, held a period:
-    sized from the slope between A and B when B gained at least the touch force over A,
-    else twice the last stair (a first stair sized from a slope the arm's breakaway from
-    static friction steepened adds little: an arm whose joints stick reads a jump at
-    contact and a shallower spring after it)."""
+    A by less than LEVEL_SPREAD x (push_force - contact_force) and the budget leaves room
+    for it and the way back, one more stair from B, held a period, sized from the slope
+    between A and B when B gained at least the touch force over A: once, or, when `extend`
+    (no earlier push has its levels apart: the stiffness needs one), as long as the budget
+    allows, and then also when B gained less but the hand settled there, twice the last
+    stair (a first stair sized from a slope the arm's breakaway from static friction
+    steepened adds little: an arm whose joints stick reads a jump at contact and a
+    shallower spring after it). Otherwise the push ends (the object gives way, or a later
+    push is not to spend the budget the free direction needs)."""
     cfg = session.cfg
     reached = push.stairs[-1]
     held = session.step()
@@ -785,7 +794,9 @@ def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
     slope = _contact_slope(push, session.touch)
     wanted = push.change(held)[0] + (cfg.push_force - cfg.contact_force)
     last_stair: float | None = None
-    while True:
+    for tries in itertools.count():
+        if tries >= 2 and not extend:
+            return
         now = push.level_b or held
         df = push.change(now)[0]
         start = push.depth_b or depth
@@ -805,10 +816,24 @@ def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
         push.settled_b = _settled(first, last, depth_b)
         last_stair = depth_b - start
         gained = push.change(last)[0] - push.change(held)[0]
-        if gained >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force) or not push.settled_b:
+        if gained >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
             return
         ds = float(np.linalg.norm(last.stretch - held.stretch))
-        slope = gained / ds if gained >= session.touch and ds > 1e-6 else None
+        if gained >= session.touch and ds > 1e-6:
+            slope = gained / ds
+        elif push.settled_b and extend:  # held still and barely loaded: the joints stick
+            slope = None
+        else:  # the object gives way under the push: more stairs would move it further
+            return
+
+
+def _levels_apart(push: Push, cfg: CalibrationConfig) -> bool:
+    """Whether the push has both levels, |F_B - F_A| at least LEVEL_SPREAD x (push_force -
+    contact_force) apart (what the stiffness needs)."""
+    if push.level_a is None or push.level_b is None:
+        return False
+    df = float(np.linalg.norm(push.level_b.force - push.level_a.force))
+    return df >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force)
 
 
 def _level_slope(push: Push) -> float | None:
