@@ -223,6 +223,58 @@ def test_a_robot_that_never_moves_is_reported_unmeasured_with_reasons() -> None:
     assert robot.holds == 1
 
 
+class StickyArm(FrozenArm):
+    """A door-like grasp: the hand follows the setpoint along +y and -x (the object gives
+    way), and is blocked along -y and +x by an arm whose joints stick: the force stays at
+    rest until the setpoint is `gap` [m] away, jumps by `breakaway` [N] there (static
+    friction giving way) and rises by `spring` [N/m] per metre beyond. The slope at contact
+    is far steeper than the spring after it (the simulated Jaco on the door)."""
+
+    gap = 0.002
+    breakaway = 2.9
+    spring = 600.0
+    free = (np.array([0.0, 1.0, 0.0]), np.array([-1.0, 0.0, 0.0]))
+
+    def read_pose(self) -> Pose:
+        offset = np.asarray(self.setpoint.position, dtype=float) - self.home
+        followed = sum(max(float(offset @ u), 0.0) * u for u in self.free)
+        return Pose(self.home + followed, self.pose.orientation)
+
+    def read_wrench(self) -> Wrench:
+        held = np.asarray(self.setpoint.position - self.read_pose().position, dtype=float)
+        depth = float(np.linalg.norm(held))
+        push = np.zeros(3)
+        if depth >= self.gap:
+            push = (self.breakaway + self.spring * (depth - self.gap)) * held / depth
+        base = super().read_wrench()
+        return Wrench(base.force - push, base.torque)
+
+    @property
+    def home(self) -> np.ndarray:
+        return np.asarray(self.pose.position, dtype=float)
+
+
+def test_an_arm_whose_joints_stick_gets_its_spring_measured_within_the_limits() -> None:
+    """The first stair past contact, sized from the steep breakaway, adds little force: the
+    level above it is reached in further stairs, sized from the force they add, within the
+    force limit, the travel limit and the budget."""
+    arm = StickyArm()
+    robot = Recorder(arm)
+    cfg = CalibrationConfig()
+    profile = calibrate(robot, "sticky", (0.0, 0.0, 1.0), cfg)
+    assert profile.outcome == "complete"
+    k = profile.value("stiffness")
+    assert k is not None, profile.quantities["stiffness"].reason
+    assert k == pytest.approx(arm.spring, rel=0.1)
+    assert profile.robot_time < 5.0
+    start = robot.start.position
+    assert max(np.linalg.norm(c.position - start) for c in robot.commands) <= cfg.travel_limit
+    rest = np.mean(robot.forces[: cfg.rest_periods], axis=0)
+    assert max(np.linalg.norm(f - rest) for f in robot.forces) < cfg.force_limit
+    assert np.allclose(robot.commands[-1].position, start)
+    assert robot.holds == 1
+
+
 # --- every stop holds, an exception included --------------------------------------------------
 class Failing(Recorder):
     """Raises in `advance` from period `at` on, or returns a bad reading from then on."""

@@ -20,7 +20,9 @@ The phases (one reading per control period throughout):
    ends when
    - |dF| reaches `contact_force`: blocked. That stair, held a period, is level A; one more
      stair, sized from the slope to add push_force - contact_force and held a period, is
-     level B;
+     level B. Where B fell short (an arm whose joints stick reads a steep jump at contact
+     and a shallower spring after it), further held stairs from B, sized from the slope
+     between A and B, while the budget leaves room for them and the way back;
    - the hand has followed the setpoint `free_travel` with |dF| below `contact_force`: free
      (the object's own motion, or play in the grasp);
    - the setpoint reaches `travel_limit`: soft (neither).
@@ -686,13 +688,17 @@ def _pushes(
         # level B (for the stiffness) on the first blocked push, and on later ones while
         # the budget leaves room for a free push after them
         first = not any(p.level_b is not None for p in pushes)
-        push = _staircase(session, u, base, first or session.remaining >= B_ROOM)
+        # further stairs toward level B only until one push has its two levels apart
+        extend = not any(_levels_apart(p, session.cfg) for p in pushes)
+        push = _staircase(session, u, base, first or session.remaining >= B_ROOM, extend)
         pushes.append(push)
         base = push.back[-1]
     return pushes
 
 
-def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -> Push:
+def _staircase(
+    session: _Session, u: FloatArray, base: Reading, level_b: bool, extend: bool = False
+) -> Push:
     cfg = session.cfg
     push = Push(direction=u, base=base)
     depth, step = 0.0, cfg.first_push
@@ -726,7 +732,7 @@ def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -
             grow = min(grow, max((aim - df) / slope, 0.5 * step))
         step = min(grow, _safe_step(session, push, df))
     if push.kind == "blocked":
-        _levels(session, push, depth, level_b)
+        _levels(session, push, depth, level_b, extend)
         slopes = [
             x for x in (_contact_slope(push, session.touch), _level_slope(push)) if x is not None
         ]
@@ -736,12 +742,12 @@ def _staircase(session: _Session, u: FloatArray, base: Reading, level_b: bool) -
     return push
 
 
-def _safe_step(session: _Session, push: Push, df: float) -> float:
+def _safe_step(session: _Session, push: Push, df: float, slope: float | None = None) -> float:
     """[m] the largest stair that keeps |dF| within the force limit should the object block
     all of it: SAFE_SHARE of the headroom (force_limit - |dF|) over the stiffest the arm
-    may be, twice the steepest slope measured (this push's, or an earlier push's), or
-    max_stiffness before any."""
-    known = [x for x in (_contact_slope(push, session.touch), session.stiffness) if x]
+    may be, twice the steepest slope measured (this push's, `slope` [N/m] between its
+    levels, or an earlier push's), or max_stiffness before any."""
+    known = [x for x in (_contact_slope(push, session.touch), slope, session.stiffness) if x]
     bound = 2.0 * max(known) if known else session.cfg.max_stiffness
     return SAFE_SHARE * max(session.cfg.force_limit - df, 0.0) / bound
 
@@ -763,12 +769,21 @@ def _contact_slope(push: Push, touch: float) -> float | None:
     return (fb - fa) / (sb - sa)
 
 
-def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
+def _levels(
+    session: _Session, push: Push, depth: float, level_b: bool, extend: bool = False
+) -> None:
     """Hold the stair that reached contact_force a period: level A. Then (when `level_b`)
     one more stair toward push_force - contact_force above A, sized from the trusted slope
-    and never beyond _safe_step or travel_limit, held a period: level B; when B is short of
-    A by less than LEVEL_SPREAD x (push_force - contact_force), one more stair sized from
-    the slope between A and B."""
+    and never beyond _safe_step or travel_limit, held a period: level B. While B is short of
+    A by less than LEVEL_SPREAD x (push_force - contact_force) and the budget leaves room
+    for it and the way back, one more stair from B, held a period, sized from the slope
+    between A and B when B gained at least the touch force over A: once, or, when `extend`
+    (no earlier push has its levels apart: the stiffness needs one), as long as the budget
+    allows, and then also when B gained less but the hand settled there, twice the last
+    stair (a first stair sized from a slope the arm's breakaway from static friction
+    steepened adds little: an arm whose joints stick reads a jump at contact and a
+    shallower spring after it). Otherwise the push ends (the object gives way, or a later
+    push is not to spend the budget the free direction needs)."""
     cfg = session.cfg
     reached = push.stairs[-1]
     held = session.step()
@@ -778,27 +793,47 @@ def _levels(session: _Session, push: Push, depth: float, level_b: bool) -> None:
         return
     slope = _contact_slope(push, session.touch)
     wanted = push.change(held)[0] + (cfg.push_force - cfg.contact_force)
-    for _ in range(2):
+    last_stair: float | None = None
+    for tries in itertools.count():
+        if tries >= 2 and not extend:
+            return
         now = push.level_b or held
         df = push.change(now)[0]
         start = push.depth_b or depth
-        step = _safe_step(session, push, df)
+        step = _safe_step(session, push, df, slope)
         if slope is not None:
             step = min(step, max(wanted - df, 0.0) / slope)
+        elif last_stair is not None:
+            step = min(step, 2.0 * last_stair)
         depth_b = min(start + step, cfg.travel_limit)
-        if depth_b - start < 1e-5 or session.remaining < 2:
+        # a further stair keeps the periods the way back and the settling need
+        room = 2 if push.level_b is None else 3 + SETTLE_PERIODS
+        if depth_b - start < 1e-5 or session.remaining < room:
             return
         first = session.step(session.at(push.direction, depth_b))
         last = session.step()
         push.level_b, push.depth_b, push.before_b = last, depth_b, first
         push.settled_b = _settled(first, last, depth_b)
+        last_stair = depth_b - start
         gained = push.change(last)[0] - push.change(held)[0]
         if gained >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force):
             return
         ds = float(np.linalg.norm(last.stretch - held.stretch))
-        if gained < session.touch or ds <= 1e-6:
+        if gained >= session.touch and ds > 1e-6:
+            slope = gained / ds
+        elif push.settled_b and extend:  # held still and barely loaded: the joints stick
+            slope = None
+        else:  # the object gives way under the push: more stairs would move it further
             return
-        slope = gained / ds
+
+
+def _levels_apart(push: Push, cfg: CalibrationConfig) -> bool:
+    """Whether the push has both levels, |F_B - F_A| at least LEVEL_SPREAD x (push_force -
+    contact_force) apart (what the stiffness needs)."""
+    if push.level_a is None or push.level_b is None:
+        return False
+    df = float(np.linalg.norm(push.level_b.force - push.level_a.force))
+    return df >= LEVEL_SPREAD * (cfg.push_force - cfg.contact_force)
 
 
 def _level_slope(push: Push) -> float | None:
