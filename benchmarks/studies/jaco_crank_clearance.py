@@ -124,7 +124,7 @@ def main() -> None:
     for i in range(args.per_kind):
         place = random_placement("crank", np.random.default_rng([0, k, i]))
         skill = _demo_skill(place, np.random.default_rng([0, k, i, 2]), HandOffset())
-        entry = {"index": i}
+        entry: dict[str, Any] = {"index": i}
         for label, task in (("believed", scene_from_skill(skill).task), ("true", place.task)):
             entry[label] = hand_to_post(task)
         out.append(entry)
