@@ -2,7 +2,7 @@
 
     nice -n 10 python benchmarks/placement.py [--per-kind 15] [--out FILE.json]
     nice -n 10 python benchmarks/placement.py --end-to-end [--robots hook-hand,jaco]
-        [--per-kind 15] [--recognizer cnn] [--out FILE.json]
+        [--kinds drawer,...,crank] [--per-kind 15] [--recognizer cnn] [--out FILE.json]
 
 Per kind (drawer, plate, pole, window, door, lid, crank) `--per-kind` random placements (any
 yaw, either hinge side, radii 0.06-1.0 m), each demonstrated once with 5 mm tracking noise,
@@ -16,7 +16,8 @@ point found in the head camera's depth image, reach, approach, grasp, manipulate
 retreat and return home, with nothing of the simulated object at run time; beside each, the
 same placement started at the grasp from the demonstration above (today's run). Per robot and
 kind: successes, failures by phase, peak |F| of both, their paired difference, the
-recognizer's error.
+recognizer's error. `--kinds` runs some kinds only (each kind's placements are the same
+whichever others run).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from pathlib import Path
 
 from constraint_aware.bench.placement import FULL_PER_KIND, run_placement
 from constraint_aware.bench.provenance import write_results
+from constraint_aware.sim.tasks import KINDS
 
 HERE = Path(__file__).parent
 
@@ -54,8 +56,9 @@ def end_to_end(args: argparse.Namespace) -> None:
         )
 
     robots = tuple(r for r in args.robots.split(",") if r)
+    kinds = tuple(k for k in args.kinds.split(",") if k)
     result = run_end_to_end(
-        args.per_kind, robots, args.seed, recognizer=args.recognizer, progress=progress
+        args.per_kind, robots, args.seed, kinds, recognizer=args.recognizer, progress=progress
     )
     data = result.to_dict()
     data["wall_time_s"] = time.perf_counter() - start
@@ -85,6 +88,9 @@ def main() -> None:
                         "(end to end: results/end_to_end.json)")  # fmt: skip
     parser.add_argument("--end-to-end", action="store_true", help="the sequence from home")
     parser.add_argument("--robots", default="hook-hand,jaco", help="--end-to-end: robots")
+    parser.add_argument(
+        "--kinds", default=",".join(KINDS), help="--end-to-end: kinds (comma-separated)"
+    )
     parser.add_argument("--recognizer", default="cnn", choices=("cnn", "geometric"))
     args = parser.parse_args()
     if args.end_to_end:

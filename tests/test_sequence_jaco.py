@@ -1,5 +1,7 @@
 """The Jaco in the execution sequence: where its base stands (inside the joint limits the
-controller holds, where the perceived grasp is reachable) and leaving a pressed knob."""
+controller holds, where the perceived grasp is reachable, with the hand modelled as it
+reaches, where its arm at home leaves the head camera its view) and leaving a pressed
+knob."""
 
 from __future__ import annotations
 
@@ -49,6 +51,87 @@ def test_the_base_moves_when_the_perceived_grasp_is_out_of_reach() -> None:
     assert not reaches_from(place.task, demonstrated)
     perceived, _ = choose_base(place.task)  # reaches_from holds there
     assert float(np.linalg.norm(perceived - demonstrated)) > 0.01
+
+
+def test_the_station_models_the_hand_pre_shaped_as_it_reaches() -> None:
+    # a crank's knob 12 cm from its hinge post: at the pre-grasp above the knob the hand
+    # pre-shaped for it keeps the planner's clearance from the post, the open hand does not;
+    # a station checked with the open hand refused a crank the reach then clears
+    from constraint_aware.lfo.scene import scene_from_skill
+    from constraint_aware.sim.jaco import arm_base
+    from constraint_aware.sim.reach import (
+        BASE_PLACEMENT,
+        JACO_PRESHAPE,
+        JacoPlanner,
+        _grasp,
+        choose_base,
+        facing,
+    )
+
+    _, skill = _placed("crank", 1)
+    believed = scene_from_skill(skill).task
+    base = arm_base(believed, BASE_PLACEMENT[("revolute", "knob")])
+    grasp = _grasp(believed)
+    pre = grasp.moved(-0.10 * grasp.orientation.apply([0.0, 0.0, 1.0]))
+    planner = JacoPlanner(base)
+    planner.set_object(believed)
+    q = planner.solve_ik(pre, facing(base, pre.position), clearance=-1.0)
+    planner.fingers = JACO_PRESHAPE["knob"]
+    shaped = planner.clearance(q)
+    planner.fingers = JACO_PRESHAPE["bar"]  # open
+    assert planner.clearance(q) < planner.config.clearance <= shaped
+    choose_base(believed)  # some placement reaches it
+
+
+def test_the_arm_at_home_leaves_the_head_camera_its_view() -> None:
+    # the first placement from which the arm reaches this crank puts its home posture between
+    # the head camera and the knob (the recognizer then refuses a crop it barely sees); the
+    # station is one from which the camera sees the crop's central half
+    from scipy.spatial.transform import Rotation
+
+    from constraint_aware.lfo.perception import nominal_frame
+    from constraint_aware.lfo.scene import scene_from_skill
+    from constraint_aware.lfo.sequence import SequenceConfig, home_view, station_for
+    from constraint_aware.sim.reach import (
+        JACO_PRESHAPE,
+        JacoPlanner,
+        choose_base,
+        facing,
+        home_pose,
+    )
+    from constraint_aware.spatial import Pose
+
+    _, skill = _placed("crank", 1)
+    believed = scene_from_skill(skill).task
+    cfg = SequenceConfig()
+    home = (cfg.jaco_home_forward, cfg.jaco_home_up)
+    station = station_for("jaco", skill, cfg)
+    assert station.base is not None and station.home_joints is not None
+    _, frame = nominal_frame(skill)
+    view = home_view(station.camera, frame)
+    blind, _ = choose_base(believed, cfg.pre_grasp, home)  # no view asked
+    assert float(np.linalg.norm(station.base - blind)) > 0.1
+
+    def hidden(base: np.ndarray, q: np.ndarray | None = None) -> int:
+        planner = JacoPlanner(base)
+        planner.fingers = JACO_PRESHAPE["knob"]
+        planner.set_object(believed)
+        if q is None:
+            grasp = Pose(frame.origin, Rotation.from_matrix(frame.rotation))
+            tool = home_pose(base, grasp, home)
+            q = planner.solve_ik(tool, facing(base, tool.position))
+        return planner.hidden(q, view.eye, view.points)
+
+    assert hidden(station.base, station.home_joints) == 0
+    assert hidden(blind) > len(view.points) // 2
+
+
+def test_the_end_to_end_benchmark_names_an_unknown_kind() -> None:
+    from constraint_aware.bench.endtoend import run_end_to_end
+    from constraint_aware.errors import UnknownNameError
+
+    with pytest.raises(UnknownNameError, match="crnk"):
+        run_end_to_end(1, ("jaco",), kinds=("crank", "crnk"))
 
 
 def test_leaving_a_pressed_knob_is_not_a_contact() -> None:

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.errors import CapError
+from constraint_aware.errors import CapError, UnknownNameError
 from constraint_aware.geometry import angle_deg
 from constraint_aware.lfo.execute import execute
 from constraint_aware.lfo.infer import infer_skill
@@ -154,9 +154,13 @@ def run_end_to_end(
     progress: Any = None,
 ) -> EndToEndResult:
     """`per_kind` placements of each kind on each robot (placement i of kind k: the
-    placement benchmark's draw np.random.default_rng([seed, k, i])), end to end from an offset
-    demonstration, and, when `teleported`, today's run placed at the grasp from the placement
-    benchmark's demonstration of the same placement."""
+    placement benchmark's draw np.random.default_rng([seed, k, i]), k the kind's index in
+    `sim.tasks.KINDS`, so that a subset of `kinds` draws the same placements), end to end from
+    an offset demonstration, and, when `teleported`, today's run placed at the grasp from the
+    placement benchmark's demonstration of the same placement."""
+    for kind in kinds:
+        if kind not in KINDS:
+            raise UnknownNameError("kind", kind, KINDS)
     policy = policy or ConstraintAwarePolicy.load()
     found = make_recognizer(recognizer)
     result = EndToEndResult(per_kind, seed, list(robots), list(kinds), recognizer)
@@ -164,7 +168,8 @@ def run_end_to_end(
     # has rendered: the sequences' offscreen depth rendering (EGL) hangs there (`cap bench`
     # runs this section in a process of its own)
     for robot in robots:
-        for k, kind in enumerate(kinds):
+        for kind in kinds:
+            k = KINDS.index(kind)
             for i in range(per_kind):
                 place = random_placement(kind, np.random.default_rng([seed, k, i]))
                 skill = _demo_skill(place, np.random.default_rng([seed, k, i, 2]), HandOffset())

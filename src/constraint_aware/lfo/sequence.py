@@ -43,7 +43,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -72,14 +72,25 @@ from constraint_aware.lfo.perception import (
 )
 from constraint_aware.lfo.scene import scene_from_skill
 from constraint_aware.policy import ConstraintAwarePolicy
-from constraint_aware.recognizer import RecognitionError, Recognizer, make_recognizer
+from constraint_aware.recognizer import (
+    CROP_SIZE,
+    GraspFrame,
+    RecognitionError,
+    Recognizer,
+    make_recognizer,
+)
 from constraint_aware.sim.camera import CameraMount, DepthCamera, DepthImage, add_camera
 from constraint_aware.sim.embodiment import DEFAULT_ROBOT, Embodiment, parse_robot
 from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
 from constraint_aware.sim.tasks import TaskConfig
 from constraint_aware.spatial import Pose
 
+if TYPE_CHECKING:
+    from constraint_aware.sim.reach import View
+
 PHASES = ("perceive", "reach", "approach", "grasp", "manipulate", "release", "retreat", "home")
+#: points per side of the grid the Jaco's head camera must see from home (`station_for`)
+VIEW_GRID = 5
 START_HOME = "home"
 START_AT_GRASP = "at-grasp"
 STARTS = (START_HOME, START_AT_GRASP)
@@ -225,6 +236,18 @@ def _toward_hand(skill: SkillParameters, approach: FloatArray, samples: int = 16
     return max(0.0, *along)
 
 
+def home_view(camera: CameraMount, frame: GraspFrame) -> View:
+    """What the Jaco's head `camera` must see from the robot's home: the central half of the
+    recognizer's crop around the demonstrated point (`frame`'s origin), on a `VIEW_GRID`
+    square grid in the crop's plane. The robot looks from home, and a crop its own arm hides
+    is one the recognizer refuses; the handle lies near the demonstrated point."""
+    from constraint_aware.sim.reach import View
+
+    side = np.linspace(-0.25 * CROP_SIZE, 0.25 * CROP_SIZE, VIEW_GRID)
+    points = frame.to_world(np.array([[x, y, 0.0] for x in side for y in side]))
+    return View(np.asarray(camera.pose.position, dtype=float), points)
+
+
 def station_for(
     robot: str, skill: SkillParameters, config: SequenceConfig | None = None
 ) -> Station:
@@ -239,13 +262,20 @@ def station_for(
         back = cfg.hook_home_back + _toward_hand(skill, frame.rotation[:, 2])
         home = frame.origin - back * frame.rotation[:, 2] + cfg.hook_home_up * up
         return Station(spec.name, camera, home_pose=Pose(home, orientation))
-    from constraint_aware.sim.reach import JacoPlanner, choose_base, facing, home_pose
+    from constraint_aware.sim.reach import (
+        JACO_PRESHAPE,
+        JacoPlanner,
+        choose_base,
+        facing,
+        home_pose,
+    )
 
     believed = scene_from_skill(skill).task
     offsets = (cfg.jaco_home_forward, cfg.jaco_home_up)
-    base, _ = choose_base(believed, cfg.pre_grasp, offsets)
+    base, _ = choose_base(believed, cfg.pre_grasp, offsets, home_view(camera, frame))
     tool = home_pose(base, Pose(frame.origin, orientation), offsets)
     planner = JacoPlanner(base)
+    planner.fingers = JACO_PRESHAPE[believed.object.handle]  # as at home: pre-shaped
     planner.set_object(believed)
     q = planner.solve_ik(tool, facing(base, tool.position))
     return Station(spec.name, camera, base=base, home_joints=q)

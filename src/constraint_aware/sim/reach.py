@@ -254,6 +254,24 @@ class JacoPlanner:
             )
         )
 
+    def hidden(self, q: FloatArray, eye: FloatArray, points: FloatArray) -> int:
+        """How many of `points` (N, 3) [m] the arm at joint angles `q` (6,) [rad] hides from a
+        camera at `eye` (3,) [m]: the first surface on the line of sight is an arm's or hand's
+        geom, nearer than the point."""
+        m, d = self.model, self._scratch
+        d.qpos[:] = self._full(q)
+        mujoco.mj_kinematics(m, d)
+        arm = set(self._robot_geoms)
+        eye = np.asarray(eye, dtype=float)
+        hit = np.array([-1], dtype=np.int32)
+        count = 0
+        for point in np.asarray(points, dtype=float):
+            ray = point - eye
+            distance = float(np.linalg.norm(ray))
+            at = mujoco.mj_ray(m, d, eye, ray / distance, None, 1, -1, hit)
+            count += int(hit[0] in arm and 0.0 <= at < distance)
+        return count
+
     def roomiest_ik(self, pose: Pose) -> FloatArray:
         """(6,) [rad] of the collision-free solutions for `pose` (everything but the handle),
         the one farthest from the joint limits (as the arm is placed at a grasp,
@@ -444,10 +462,20 @@ def motion_poses(task: TaskConfig, grasp: Pose, fractions: tuple[float, ...]) ->
     return out
 
 
+@dataclass(frozen=True)
+class View:
+    """What the robot's head camera must see from the robot's home: `points` (N, 3) [m] from
+    the camera's position `eye` (3,) [m]."""
+
+    eye: FloatArray
+    points: FloatArray
+
+
 def choose_base(
     task: TaskConfig,
     pre_grasp: float = 0.10,
     home: tuple[float, float] | None = None,
+    view: View | None = None,
 ) -> tuple[FloatArray, tuple[float, float, float]]:
     """Where the Jaco stands for `task` (the object as the robot believes it): the kind's
     placement (sim.jaco.BASE_PLACEMENT) if from it the arm reaches what `reaches_from`
@@ -458,7 +486,7 @@ def choose_base(
     grasp = _grasp(task)
     for placement in [*first, *BASE_CANDIDATES]:
         base = arm_base(task, placement)
-        if reaches_from(task, base, pre_grasp, home, grasp):
+        if reaches_from(task, base, pre_grasp, home, grasp, view):
             return base, placement
     raise CapError(
         f"the Jaco reaches the demonstrated motion of the {task.name} from none of "
@@ -480,23 +508,28 @@ def reaches_from(
     pre_grasp: float = 0.10,
     home: tuple[float, float] | None = None,
     grasp: Pose | None = None,
+    view: View | None = None,
 ) -> bool:
     """Whether the Jaco standing at `base` (3,) [m] reaches `task`'s object as the robot
     believes it: clear of the object (as `JacoPlanner` checks), the pre-grasp `pre_grasp` [m]
     back from the grasp, and the grasp at the start, half-way and the end of the motion with
     the object moved that far (clear of everything but the handle it holds), and, given
     `home` (forward, up) [m] from the base toward the handle, a home tool pose clear of the
-    object closed and at the motion's end. `grasp`: the tool pose at the grasp, if known.
+    object closed and at the motion's end, from which, given `view`, the arm hides none of
+    the view's points from the camera (the robot looks from home). `grasp`: the tool pose at
+    the grasp, if known.
 
-    The pre-grasp and the motion must be reached `OscConfig.limit_margin` inside the joint
-    limits: there the controller's joint-limit repulsion starts, and a posture inside it is
-    one the arm does not hold (it stops short of the grasp)."""
+    The hand is modelled as it reaches: pre-shaped for the object's handle
+    (`JACO_PRESHAPE`). The pre-grasp and the motion must be reached `OscConfig.limit_margin`
+    inside the joint limits: there the controller's joint-limit repulsion starts, and a
+    posture inside it is one the arm does not hold (it stops short of the grasp)."""
     grasp = grasp or _grasp(task)
     approach = grasp.orientation.apply([0.0, 0.0, 1.0])
     pre = grasp.moved(-pre_grasp * approach)
     fractions = (0.0, 0.5, 1.0)
     margin = OscConfig().limit_margin
     planner = JacoPlanner(base)
+    planner.fingers = JACO_PRESHAPE[task.object.handle]
     try:
         planner.set_object(task)
         q = planner.solve_ik(pre, facing(base, pre.position), margin=margin)
@@ -505,9 +538,11 @@ def reaches_from(
             q = planner.solve_ik(pose, q, handle=False, clearance=0.0, margin=margin)
         if home is not None:
             tool = home_pose(base, grasp, home)
-            for f in (1.0, 0.0):
+            for f in (1.0, 0.0):  # the last: closed, as the robot sees it
                 planner.set_object(task, f * task.success_progress)
-                planner.solve_ik(tool, facing(base, tool.position))
+                q = planner.solve_ik(tool, facing(base, tool.position))
+            if view is not None and planner.hidden(q, view.eye, view.points) > 0:
+                return False
     except PlanningError:
         return False
     return True
