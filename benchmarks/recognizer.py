@@ -8,10 +8,11 @@ Held-out crops (lfo/grasp_data.py with a seed `cap train-grasp` does not use: ot
 placements, sizes, distractors and demonstration offsets), from both robots' head cameras;
 per kind and method (the shipped CNN, the geometric baseline): the contact-point error's
 median and 95th percentile [mm], the approach error's 95th percentile [deg], and the share of
-crops without an answer. Also the demonstrated point's own distance from the contact point
-and the nominal approach's error: what the recognizer starts from. `--kinds`: those kinds'
-scenes only (the same scenes as in the full set); `--per-crop`: also every crop's errors, its
-scene (8 crops each: 4 per robot's camera) and the share of its cells without a depth return.
+crops without an answer. Also, as a third row per kind in the same table (`demonstration`),
+what the recognizers start from: the demonstrated point's own distance from the contact point
+and the nominal approach's error. `--kinds`: those kinds' scenes only (the same scenes as in
+the full set); `--per-crop`: also every crop's errors, its scene (8 crops each: 4 per robot's
+camera) and the share of its cells without a depth return.
 """
 
 from __future__ import annotations
@@ -24,7 +25,12 @@ import numpy as np
 
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.lfo.grasp_data import GraspDataset, generate
-from constraint_aware.lfo.grasp_training import Scores, score
+from constraint_aware.lfo.grasp_training import (
+    DEMONSTRATION,
+    Scores,
+    demonstration_scores,
+    score,
+)
 from constraint_aware.recognizer import ContactPointRecognizer, GeometricRecognizer
 from constraint_aware.sim.tasks import KINDS
 
@@ -84,17 +90,8 @@ def main() -> None:
     }
     tables = {name: s.table() for name, s in scores.items()}
     kinds = list(dict.fromkeys(data.kinds.tolist()))
-    start_from = {
-        kind: {
-            "offset_mm_median": float(np.median(data.offsets[data.kinds == kind]) * 1000.0),
-            "nominal_approach_error_p95_deg": float(
-                # as the methods' tables: the crop at or above the 95 % rank (8 crops of a
-                # scene share its demonstration, so interpolating would hide a scene's error)
-                np.percentile(data.nominal_errors[data.kinds == kind], 95, method="higher")
-            ),
-        }
-        for kind in kinds
-    }
+    # what the methods start from, in the methods' table (the same percentiles)
+    start_from = demonstration_scores(data).table()
     results = {
         "scenes_per_kind": args.scenes,
         "seed": args.seed,
@@ -111,7 +108,7 @@ def main() -> None:
     print("| kind | method | median [mm] | p95 [mm] | approach p95 [deg] | no answer |")
     print("|---" * 6 + "|")
     for kind in [*kinds, "all"]:
-        for method, table in tables.items():
+        for method, table in [*tables.items(), (DEMONSTRATION, start_from)]:
             r = table[kind]
             cells = [_f(r["median_mm"]), _f(r["p95_mm"]), _f(r["approach_p95_deg"])]
             no_answer = 100.0 * (r["no_answer"] or 0.0)
