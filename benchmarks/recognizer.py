@@ -12,7 +12,8 @@ crops without an answer. Also, as a third row per kind in the same table (`demon
 what the recognizers start from: the demonstrated point's own distance from the contact point
 and the nominal approach's error. `--kinds`: those kinds' scenes only (the same scenes as in
 the full set); `--per-crop`: also every crop's errors, its scene (8 crops each: 4 per robot's
-camera) and the share of its cells without a depth return.
+camera), the share of its cells without a depth return and the share of the handle its
+camera sees unoccluded.
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ def _f(x: float | None) -> str:
 
 def _per_crop(data: GraspDataset, scores: dict[str, Scores]) -> list[dict[str, object]]:
     """Every crop: kind, scene (its index among the kind's scenes), robot, the demonstrated
-    point's offset [mm], the share of cells without a return, each method's contact-point
+    point's offset [mm], the share of cells without a return, the share of the handle its
+    camera sees unoccluded (lfo.grasp_data.handle_visibility), each method's contact-point
     error [mm] (None: no answer)."""
     out: list[dict[str, object]] = []
     seen: dict[str, int] = {}
@@ -59,6 +61,7 @@ def _per_crop(data: GraspDataset, scores: dict[str, Scores]) -> list[dict[str, o
             "robot": str(data.robots[i]),
             "offset_mm": 1000.0 * float(data.offsets[i]),
             "no_return": float(np.isnan(data.heights[i]).mean()),
+            "handle_visible": float(data.visible[i]),
         }
         for name, s in scores.items():
             e = float(s.position[i])

@@ -48,6 +48,7 @@ def _knob_crops() -> GraspDataset:
         robots=np.full(n, "hook-hand"),
         offsets=np.linalg.norm(points, axis=1),
         nominal_errors=tilt,
+        visible=np.ones(n),
     )
 
 
