@@ -2,7 +2,8 @@
 prints a table.
 
     nice -n 10 python benchmarks/recognizer.py [--scenes 40] [--seed 7] [--data FILE.npz]
-        [--kinds drawer,...] [--per-crop] [--out benchmarks/results/recognizer.json]
+        [--kinds drawer,...] [--per-crop] [--no-distractors] [--noiseless]
+        [--out benchmarks/results/recognizer.json]
 
 Held-out crops (lfo/grasp_data.py with a seed `cap train-grasp` does not use: other
 placements, sizes, distractors and demonstration offsets), from both robots' head cameras;
@@ -13,7 +14,9 @@ what the recognizers start from: the demonstrated point's own distance from the 
 and the nominal approach's error. `--kinds`: those kinds' scenes only (the same scenes as in
 the full set); `--per-crop`: also every crop's errors, its scene (8 crops each: 4 per robot's
 camera), the share of its cells without a depth return and the share of the handle its
-camera sees unoccluded.
+camera sees unoccluded. `--no-distractors` (the same placements and demonstrations, other
+crop offsets) and `--noiseless` (sim.camera.NO_NOISE) take the distractors or the sensor's
+noise away, to tell what hides a handle.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from constraint_aware.lfo.grasp_training import (
     score,
 )
 from constraint_aware.recognizer import ContactPointRecognizer, GeometricRecognizer
+from constraint_aware.sim.camera import NO_NOISE
 from constraint_aware.sim.tasks import KINDS
 
 HERE = Path(__file__).parent
@@ -77,6 +81,12 @@ def main() -> None:
     parser.add_argument("--data", help="score these crops (a GraspDataset .npz) instead")
     parser.add_argument("--kinds", default=",".join(KINDS), help="object kinds, comma-separated")
     parser.add_argument("--per-crop", action="store_true", help="every crop's errors too")
+    parser.add_argument(
+        "--no-distractors", action="store_true", help="the same placements without distractors"
+    )
+    parser.add_argument(
+        "--noiseless", action="store_true", help="the rendered depth without the sensor's noise"
+    )
     parser.add_argument("--out", default=str(HERE / "results" / "recognizer.json"))
     args = parser.parse_args()
     start = time.perf_counter()
@@ -84,7 +94,13 @@ def main() -> None:
     data = (
         GraspDataset.load(args.data)
         if args.data
-        else generate(args.scenes, seed=args.seed, kinds=kinds_asked)
+        else generate(
+            args.scenes,
+            seed=args.seed,
+            kinds=kinds_asked,
+            distractors=not args.no_distractors,
+            noise=NO_NOISE if args.noiseless else None,
+        )
     )
     generated = time.perf_counter() - start
     scores = {
@@ -98,6 +114,8 @@ def main() -> None:
     results = {
         "scenes_per_kind": args.scenes,
         "seed": args.seed,
+        "distractors": not args.no_distractors,
+        "sensor_noise": not args.noiseless,
         "crops": len(data),
         "robots": sorted(set(data.robots.tolist())),
         "targets": TARGETS,

@@ -67,3 +67,20 @@ def test_a_dataset_file_without_visibility_loads_with_nan_and_a_foreign_file_is_
     np.savez(tmp_path / "other.npz", x=np.zeros(2))
     with pytest.raises(InvalidInputError, match="not a recognizer dataset"):
         GraspDataset.load(tmp_path / "other.npz")
+
+
+def test_generated_crops_take_the_sensor_noise_asked_for() -> None:
+    from constraint_aware.lfo.grasp_data import generate
+    from constraint_aware.sim.camera import NO_NOISE
+
+    crops = {}
+    for name, noise in (("noisy", None), ("exact", NO_NOISE)):
+        # one crop at the demonstrated point: the same placement and crop, the noise aside
+        data = generate(1, seed=5, kinds=("plate",), robots=("hook-hand",), crops_per_view=1,
+                        distractors=False, noise=noise)  # fmt: skip
+        crops[name] = data.heights[0].astype(float)
+    both = np.isfinite(crops["noisy"]) & np.isfinite(crops["exact"])
+    assert int(both.sum()) > 500
+    difference = np.abs(crops["noisy"] - crops["exact"])[both]
+    assert float(np.median(difference)) > 0.2e-3  # the sensor's noise: about a millimetre
+    assert int(np.sum(~np.isfinite(crops["noisy"]))) > int(np.sum(~np.isfinite(crops["exact"])))

@@ -309,10 +309,12 @@ def generate(
     sizes: bool = True,
     distractors: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    noise: DepthNoise | None = None,
 ) -> GraspDataset:
-    """`scenes_per_kind` usable scenes of each kind (`scene_samples`), seeded: scene i of kind
-    k (its index in sim.tasks.KINDS, so that a subset of kinds gives the same scenes) draws
-    from np.random.default_rng([seed, k, i, attempt])."""
+    """`scenes_per_kind` usable scenes of each kind (`scene_samples`, the sensor's `noise`:
+    sim.camera's default when None), seeded: scene i of kind k (its index in sim.tasks.KINDS,
+    so that a subset of kinds gives the same scenes) draws from
+    np.random.default_rng([seed, k, i, attempt])."""
     if scenes_per_kind < 1:
         raise InvalidInputError(f"scenes_per_kind: {scenes_per_kind}; valid: >= 1")
     if crops_per_view < 1:
@@ -327,7 +329,9 @@ def generate(
         for i in range(scenes_per_kind):
             for attempt in range(20):
                 rng = np.random.default_rng([seed, k, i, attempt])
-                part = scene_samples(kind, rng, robots, crops_per_view, sizes, distractors)
+                part = scene_samples(
+                    kind, rng, robots, crops_per_view, sizes, distractors, noise=noise
+                )
                 if part is not None:
                     parts.append(part)
                     break
