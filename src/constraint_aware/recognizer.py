@@ -171,11 +171,11 @@ class Recognizer(Protocol):
 #: cylinder fixes no direction across it.
 NOMINAL_APPROACH = ("pole",)
 #: A knob's top face (`face_normal`): seeded by the cells within `FACE_SEED` [m] of the
-#: contact point across the approach and `FACE_SEED_DEPTH` [m] of the nearest surface
-#: among them, grown to the
-#: connected cells within `FACE_TOLERANCE` [m] of the plane fitted to the face (about three
-#: standard deviations of the sensor's noise at a metre) and `FACE_REACH` [m] of the point (a
-#: knob's half-diagonal is at most 3 cm).
+#: contact point across the approach and `FACE_SEED_DEPTH` [m] of the nearest surface among
+#: them, grown to the connected cells within `FACE_TOLERANCE` [m] of the plane fitted to the
+#: face (about twice the sensor's axial noise at a metre, 1.9 mm: sim.camera.DepthNoise) and
+#: `FACE_REACH` [m] of the point (a knob's half-diagonal is at most 3 cm), refitted up to
+#: `FACE_ITERATIONS` times (it stops growing within a few).
 FACE_SEED = 0.012
 FACE_SEED_DEPTH = 0.01
 FACE_TOLERANCE = 0.004
