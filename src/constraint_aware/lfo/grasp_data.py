@@ -3,7 +3,7 @@ the contact point and approach each should give, generated from the scene builde
 
 One scene: an object of one kind (sim.tasks.KINDS) at a random placement
 (lfo.synthetic.random_placement) with its handle's and main part's sizes drawn from
-`SIZE_RANGES`, up to `MAX_DISTRACTORS` unrelated boxes and cylinders around it, and a
+`SIZE_RANGES`, up to `MAX_DISTRACTORS` unrelated boxes, cylinders and spheres around it, and a
 demonstration of it whose tracked point is offset from the handle (lfo.synthetic.HandOffset).
 The skill inferred from that demonstration places each robot's head camera
 (lfo.perception.head_camera) and the crop, exactly as at run time. Each camera gives a noisy
