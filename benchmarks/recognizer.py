@@ -2,16 +2,21 @@
 prints a table.
 
     nice -n 10 python benchmarks/recognizer.py [--scenes 40] [--seed 7] [--data FILE.npz]
-        [--kinds drawer,...] [--per-crop] [--out benchmarks/results/recognizer.json]
+        [--kinds drawer,...] [--per-crop] [--no-distractors] [--noiseless]
+        [--out benchmarks/results/recognizer.json]
 
 Held-out crops (lfo/grasp_data.py with a seed `cap train-grasp` does not use: other
 placements, sizes, distractors and demonstration offsets), from both robots' head cameras;
 per kind and method (the shipped CNN, the geometric baseline): the contact-point error's
 median and 95th percentile [mm], the approach error's 95th percentile [deg], and the share of
-crops without an answer. Also the demonstrated point's own distance from the contact point
-and the nominal approach's error: what the recognizer starts from. `--kinds`: those kinds'
-scenes only (the same scenes as in the full set); `--per-crop`: also every crop's errors, its
-scene (8 crops each: 4 per robot's camera) and the share of its cells without a depth return.
+crops without an answer. Also, as a third row per kind in the same table (`demonstration`),
+what the recognizers start from: the demonstrated point's own distance from the contact point
+and the nominal approach's error. `--kinds`: those kinds' scenes only (the same scenes as in
+the full set); `--per-crop`: also every crop's errors, its scene (8 crops each: 4 per robot's
+camera), the share of its cells without a depth return and the share of the handle its
+camera sees unoccluded. `--no-distractors` (the same placements and demonstrations, other
+crop offsets) and `--noiseless` (sim.camera.NO_NOISE) take the distractors or the sensor's
+noise away, to tell what hides a handle.
 """
 
 from __future__ import annotations
@@ -24,8 +29,14 @@ import numpy as np
 
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.lfo.grasp_data import GraspDataset, generate
-from constraint_aware.lfo.grasp_training import Scores, score
+from constraint_aware.lfo.grasp_training import (
+    DEMONSTRATION,
+    Scores,
+    demonstration_scores,
+    score,
+)
 from constraint_aware.recognizer import ContactPointRecognizer, GeometricRecognizer
+from constraint_aware.sim.camera import NO_NOISE
 from constraint_aware.sim.tasks import KINDS
 
 HERE = Path(__file__).parent
@@ -39,7 +50,8 @@ def _f(x: float | None) -> str:
 
 def _per_crop(data: GraspDataset, scores: dict[str, Scores]) -> list[dict[str, object]]:
     """Every crop: kind, scene (its index among the kind's scenes), robot, the demonstrated
-    point's offset [mm], the share of cells without a return, each method's contact-point
+    point's offset [mm], the share of cells without a return, the share of the handle its
+    camera sees unoccluded (lfo.grasp_data.handle_visibility), each method's contact-point
     error [mm] (None: no answer)."""
     out: list[dict[str, object]] = []
     seen: dict[str, int] = {}
@@ -53,6 +65,7 @@ def _per_crop(data: GraspDataset, scores: dict[str, Scores]) -> list[dict[str, o
             "robot": str(data.robots[i]),
             "offset_mm": 1000.0 * float(data.offsets[i]),
             "no_return": float(np.isnan(data.heights[i]).mean()),
+            "handle_visible": float(data.visible[i]),
         }
         for name, s in scores.items():
             e = float(s.position[i])
@@ -68,6 +81,12 @@ def main() -> None:
     parser.add_argument("--data", help="score these crops (a GraspDataset .npz) instead")
     parser.add_argument("--kinds", default=",".join(KINDS), help="object kinds, comma-separated")
     parser.add_argument("--per-crop", action="store_true", help="every crop's errors too")
+    parser.add_argument(
+        "--no-distractors", action="store_true", help="the same placements without distractors"
+    )
+    parser.add_argument(
+        "--noiseless", action="store_true", help="the rendered depth without the sensor's noise"
+    )
     parser.add_argument("--out", default=str(HERE / "results" / "recognizer.json"))
     args = parser.parse_args()
     start = time.perf_counter()
@@ -75,7 +94,13 @@ def main() -> None:
     data = (
         GraspDataset.load(args.data)
         if args.data
-        else generate(args.scenes, seed=args.seed, kinds=kinds_asked)
+        else generate(
+            args.scenes,
+            seed=args.seed,
+            kinds=kinds_asked,
+            distractors=not args.no_distractors,
+            noise=NO_NOISE if args.noiseless else None,
+        )
     )
     generated = time.perf_counter() - start
     scores = {
@@ -84,20 +109,13 @@ def main() -> None:
     }
     tables = {name: s.table() for name, s in scores.items()}
     kinds = list(dict.fromkeys(data.kinds.tolist()))
-    start_from = {
-        kind: {
-            "offset_mm_median": float(np.median(data.offsets[data.kinds == kind]) * 1000.0),
-            "nominal_approach_error_p95_deg": float(
-                # as the methods' tables: the crop at or above the 95 % rank (8 crops of a
-                # scene share its demonstration, so interpolating would hide a scene's error)
-                np.percentile(data.nominal_errors[data.kinds == kind], 95, method="higher")
-            ),
-        }
-        for kind in kinds
-    }
+    # what the methods start from, in the methods' table (the same percentiles)
+    start_from = demonstration_scores(data).table()
     results = {
         "scenes_per_kind": args.scenes,
         "seed": args.seed,
+        "distractors": not args.no_distractors,
+        "sensor_noise": not args.noiseless,
         "crops": len(data),
         "robots": sorted(set(data.robots.tolist())),
         "targets": TARGETS,
@@ -111,7 +129,7 @@ def main() -> None:
     print("| kind | method | median [mm] | p95 [mm] | approach p95 [deg] | no answer |")
     print("|---" * 6 + "|")
     for kind in [*kinds, "all"]:
-        for method, table in tables.items():
+        for method, table in [*tables.items(), (DEMONSTRATION, start_from)]:
             r = table[kind]
             cells = [_f(r["median_mm"]), _f(r["p95_mm"]), _f(r["approach_p95_deg"])]
             no_answer = 100.0 * (r["no_answer"] or 0.0)

@@ -17,8 +17,9 @@ is the contact points to grasp. Here:
   closure) axis at its middle; a plate's or a knob's (passive closure) top-face centre; for a
   pole (active closure), which the hand may squeeze anywhere along, the point of its axis at
   the demonstrated height, kept `POLE_TOP_MARGIN` below its top.
-- The approach is the crop's for bars (the panel behind them) and plates (their top face)
-  and the demonstration's nominal one for poles and knobs (`NOMINAL_APPROACH`).
+- The approach is the crop's for bars (the panel behind them), plates and knobs (their top
+  face; a knob's found around the contact point, `face_normal`) and the demonstration's
+  nominal one for poles (`NOMINAL_APPROACH`).
 - Two methods: `GeometricRecognizer` segments the surface that stands out near the
   demonstrated point and takes its centre and the normal of the surface around it;
   `ContactPointRecognizer` is a small CNN (weights `.npz` + JSON card, like the policy,
@@ -167,10 +168,66 @@ class Recognizer(Protocol):
 
 
 #: Handle shapes whose approach comes from the demonstration, not from the crop: a pole's
-#: cylinder fixes no direction across it, and a knob's top face (a few cells) tilts the plane
-#: fitted to it by tens of degrees (benchmarks/recognizer.py: 95th percentiles of about 40 deg
-#: for both methods against 8 deg for the demonstration's).
-NOMINAL_APPROACH = ("pole", "knob")
+#: cylinder fixes no direction across it.
+NOMINAL_APPROACH = ("pole",)
+#: A knob's top face (`face_normal`): seeded by the cells within `FACE_SEED` [m] of the
+#: contact point across the approach and `FACE_SEED_DEPTH` [m] of the nearest surface among
+#: them, grown to the connected cells within `FACE_TOLERANCE` [m] of the plane fitted to the
+#: face (about twice the sensor's axial noise at a metre, 1.9 mm: sim.camera.DepthNoise) and
+#: `FACE_REACH` [m] of the point (a knob's half-diagonal is at most 3 cm), refitted up to
+#: `FACE_ITERATIONS` times (it stops growing within a few).
+FACE_SEED = 0.012
+FACE_SEED_DEPTH = 0.01
+FACE_TOLERANCE = 0.004
+FACE_REACH = 0.035
+FACE_ITERATIONS = 5
+MIN_FACE_CELLS = 6  # a plane through fewer cells is not trusted: the nominal approach then
+
+
+def face_normal(height: FloatArray, point: FloatArray) -> FloatArray:
+    """(3,) unit, crop frame, z > 0 (into the object): the normal of the flat face around
+    `point` (3,) [m] (crop frame: x, y across the approach, z its depth) in the height map
+    `height` (P, P) [m]. The face is grown from the cells at the point (`FACE_SEED`) to the
+    connected cells on the plane fitted to it, refitted each time; a face seen in a frame
+    tilted from its normal is followed along its slope, where a fixed height layer would cut
+    it to a sliver. The frame's z when the face holds fewer than `MIN_FACE_CELLS` cells."""
+    p = np.asarray(point, dtype=float)
+    valid = np.isfinite(height)
+    xx, yy = _cell_grid()
+    across = np.hypot(xx - p[0], yy - p[1])
+    depth = -np.where(valid, height, np.nan)  # frame z of each cell's surface
+    near = valid & (across < FACE_SEED)
+    if not np.any(near):
+        return np.array([0.0, 0.0, 1.0])
+    # the face is the surface nearest the hand there (the point's own depth is the least
+    # certain of its coordinates when the frame is tilted from the face)
+    nearest = float(np.min(depth[near]))
+    with np.errstate(invalid="ignore"):
+        face = near & (depth < nearest + FACE_SEED_DEPTH)
+    cells = np.stack([xx, yy, depth], axis=-1)
+    for _ in range(FACE_ITERATIONS):
+        if int(face.sum()) < MIN_FACE_CELLS:
+            break
+        normal, centre = _plane_fit(cells[face])
+        with np.errstate(invalid="ignore"):
+            on_plane = valid & (np.abs((cells - centre) @ normal) < FACE_TOLERANCE)
+        labels, _ = ndimage.label(on_plane & (across < FACE_REACH))
+        kept = np.unique(labels[face])
+        grown = np.isin(labels, kept[kept > 0])
+        if int(grown.sum()) < MIN_FACE_CELLS or np.array_equal(grown, face):
+            break
+        face = grown
+    if int(face.sum()) < MIN_FACE_CELLS:
+        return np.array([0.0, 0.0, 1.0])
+    return _plane_fit(cells[face])[0]
+
+
+def _plane_fit(points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The least-squares plane through points (N, 3): its unit normal (z >= 0) and centroid."""
+    centre = points.mean(axis=0)
+    _, _, vt = np.linalg.svd(points - centre, full_matrices=False)
+    n = vt[2]
+    return np.asarray(n if n[2] >= 0 else -n), np.asarray(centre)
 
 
 def _local_result(
@@ -203,7 +260,7 @@ class GeometricRecognizer:
     - plate and knob: the top face is the component nearest the centre of the cells within
       `top_layer` of the highest surface within `near` of the centre; the contact point is
       its centroid at its median height, the approach its plane's normal (a knob's: the
-      nominal one, `NOMINAL_APPROACH`).
+      face grown around that centroid, `face_normal`).
     """
 
     name = "geometric"
@@ -221,6 +278,8 @@ class GeometricRecognizer:
             point, approach = self._elongated(height, shape)
         elif shape in ("plate", "knob"):
             point, approach = self._top_face(height)
+            if shape == "knob":
+                approach = face_normal(height, point)
         else:
             raise UnknownNameError("handle shape", shape, HANDLE_SHAPES)
         return _local_result(point, approach, frame, self.name, shape)
@@ -318,14 +377,11 @@ class GeometricRecognizer:
     @staticmethod
     def _plane_normal(height: FloatArray, cells: BoolArray) -> FloatArray:
         """The unit normal (frame coordinates, z > 0: into the surface) of the least-squares
-        plane through the cells' points; the frame's z when fewer than 6 cells."""
-        if int(np.sum(cells)) < 6:
+        plane through the cells' points; the frame's z when fewer than `MIN_FACE_CELLS`."""
+        if int(np.sum(cells)) < MIN_FACE_CELLS:
             return np.array([0.0, 0.0, 1.0])
         xx, yy = _cell_grid()
-        pts = np.stack([xx[cells], yy[cells], -height[cells]], axis=1)
-        _, _, vt = np.linalg.svd(pts - pts.mean(axis=0), full_matrices=False)
-        n = vt[2]
-        return np.asarray(n if n[2] > 0 else -n)
+        return _plane_fit(np.stack([xx[cells], yy[cells], -height[cells]], axis=1))[0]
 
 
 def _circle_fit(t: FloatArray, h: FloatArray) -> tuple[float, float, float] | None:
@@ -540,12 +596,17 @@ class ContactPointRecognizer:
 
     def predict(self, heights: FloatArray, shapes: list[str]) -> tuple[FloatArray, FloatArray]:
         """Crop-frame contact points (N, 3) [m] and approaches (N, 3) of height maps (N, H, W)
-        [m] for their handle shapes (N names of `HANDLE_SHAPES`)."""
+        [m] for their handle shapes (N names of `HANDLE_SHAPES`). The network gives the
+        points and the approach of bars and plates; a knob's approach is its top face's
+        normal around the network's point (`face_normal`), a pole's the nominal one."""
         idx = [_shape_index(s) for s in shapes]
         x = network_input(np.asarray(heights))
         points, approaches = decode(forward(self.weights, x, np.asarray(idx)))
         nominal = np.isin(np.asarray(shapes), NOMINAL_APPROACH)
         approaches[nominal] = [0.0, 0.0, 1.0]
+        maps = np.asarray(heights, dtype=float)
+        for i in np.flatnonzero(np.asarray(shapes) == "knob"):
+            approaches[i] = face_normal(maps[i], points[i])
         return points, approaches
 
     def recognize(self, height: FloatArray, frame: GraspFrame, shape: str) -> Recognition:

@@ -3,7 +3,7 @@ the contact point and approach each should give, generated from the scene builde
 
 One scene: an object of one kind (sim.tasks.KINDS) at a random placement
 (lfo.synthetic.random_placement) with its handle's and main part's sizes drawn from
-`SIZE_RANGES`, up to `MAX_DISTRACTORS` unrelated boxes and cylinders around it, and a
+`SIZE_RANGES`, up to `MAX_DISTRACTORS` unrelated boxes, cylinders and spheres around it, and a
 demonstration of it whose tracked point is offset from the handle (lfo.synthetic.HandOffset).
 The skill inferred from that demonstration places each robot's head camera
 (lfo.perception.head_camera) and the crop, exactly as at run time. Each camera gives a noisy
@@ -50,7 +50,7 @@ from constraint_aware.sim.camera import (
     region_of_interest,
 )
 from constraint_aware.sim.objects import SCENERY_RGBA, VISUAL_GROUP
-from constraint_aware.sim.scene import scene_spec
+from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
 from constraint_aware.sim.tasks import KINDS, TaskConfig, task_from_object
 
 #: Sizes drawn per handle shape [m] (uniform in each range): ObjectConfig fields.
@@ -73,7 +73,9 @@ class GraspDataset:
     """Crops and labels. heights (N, P, P) float32 [m] (NaN: no return); shapes (N,) indices
     into HANDLE_SHAPES; points (N, 3) [m] and approaches (N, 3) unit: the truth in the crop
     frame; kinds, robots (N,) names; offsets (N,) [m] the demonstrated point's distance from
-    the contact point; nominal_errors (N,) [deg] the nominal approach's error."""
+    the contact point; nominal_errors (N,) [deg] the nominal approach's error; visible (N,)
+    [0, 1] the share of the handle its camera sees unoccluded (`handle_visibility`; NaN in a
+    file written without it)."""
 
     heights: np.ndarray
     shapes: np.ndarray
@@ -83,6 +85,7 @@ class GraspDataset:
     robots: np.ndarray
     offsets: np.ndarray
     nominal_errors: np.ndarray
+    visible: np.ndarray
 
     def __len__(self) -> int:
         return len(self.shapes)
@@ -98,7 +101,13 @@ class GraspDataset:
     @classmethod
     def load(cls, path: str | Path) -> GraspDataset:
         with np.load(Path(path), allow_pickle=False) as data:
-            return cls(**{f.name: data[f.name] for f in dataclasses.fields(cls)})
+            fields = {f.name: data[f.name] for f in dataclasses.fields(cls) if f.name in data}
+        if "visible" not in fields and "shapes" in fields:
+            fields["visible"] = np.full(len(fields["shapes"]), np.nan)
+        missing = [f.name for f in dataclasses.fields(cls) if f.name not in fields]
+        if missing:
+            raise InvalidInputError(f"{path}: not a recognizer dataset (no {', '.join(missing)})")
+        return cls(**fields)
 
     @classmethod
     def concatenate(cls, parts: list[GraspDataset]) -> GraspDataset:
@@ -141,6 +150,50 @@ def contact_label(
         height = min(float(np.asarray(origin) @ up), top)
         point = point + (height - float(point @ up)) * up
     return point, approach
+
+
+#: The rays per image axis `handle_visibility` casts over the handle's image.
+VISIBILITY_RAYS = 40
+
+
+def handle_visibility(model: mujoco.MjModel, data: mujoco.MjData, mount: CameraMount) -> float:
+    """The share [0, 1] of the handle (the object's grasped geom) that the camera at `mount`
+    sees unoccluded: of the camera's rays through a `VISIBILITY_RAYS` square grid over the
+    handle's image that meet the handle, those whose first surface (of the geoms the camera
+    renders) is the handle. What hides it may be a distractor or the object itself; the
+    sensor's missing returns do not count here. NaN when no ray meets the handle."""
+    handle = model.geom(OBJECT_PREFIX + "object_handle").id
+    pos = np.asarray(data.geom_xpos[handle], dtype=float)
+    mat = np.asarray(data.geom_xmat[handle], dtype=float)
+    size = np.asarray(model.geom_size[handle], dtype=float)
+    # the handle's bounding box corners (a capsule's or a cylinder's too: size[0] its radius)
+    kind = int(model.geom_type[handle])
+    half = size.copy()
+    if kind in (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER)):
+        half = np.array([size[0], size[0], size[1] + size[0]])
+    signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+    corners = pos + (signs * half) @ mat.reshape(3, 3).T
+    cam = mount.pose.to_camera(corners)
+    if np.any(cam[:, 2] <= 1e-6):
+        return float("nan")
+    x, y = cam[:, 0] / cam[:, 2], cam[:, 1] / cam[:, 2]
+    gx, gy = np.meshgrid(
+        np.linspace(x.min(), x.max(), VISIBILITY_RAYS),
+        np.linspace(y.min(), y.max(), VISIBILITY_RAYS),
+    )
+    rays = np.stack([gx.ravel(), gy.ravel(), np.ones(gx.size)], axis=1)
+    rays = np.asarray(unit(rays @ mount.pose.rotation.T))
+    origin = np.asarray(mount.pose.position, dtype=float)
+    meets = np.array([mujoco.mju_rayGeom(pos, mat, size, origin, r, kind) >= 0.0 for r in rays])
+    if not np.any(meets):
+        return float("nan")
+    first = np.zeros(len(rays), dtype=np.int32)
+    dist = np.zeros(len(rays))
+    rendered = np.asarray(mujoco.MjvOption().geomgroup, dtype=np.uint8)
+    mujoco.mj_multiRay(
+        model, data, origin, rays.ravel(), rendered, 1, -1, first, dist, None, len(rays), 100.0
+    )
+    return float(np.mean(first[meets] == handle))
 
 
 def add_distractors(
@@ -231,6 +284,7 @@ def scene_samples(
         with DepthCamera(model, mount, noise) as camera:
             image = camera.capture(data, rng, roi)
         points = image.points()
+        visible = handle_visibility(model, data, mount)
         for origin in origins:
             frame = GraspFrame(np.asarray(origin), frame0.rotation)
             truth, approach = contact_label(place.task, shape, frame.origin)
@@ -242,6 +296,7 @@ def scene_samples(
             rows["robots"].append(robot)
             rows["offsets"].append(float(np.linalg.norm(frame.origin - truth)))
             rows["nominal_errors"].append(float(angle_deg(frame.rotation[:, 2], approach)))
+            rows["visible"].append(visible)
     return GraspDataset(**{k: np.asarray(v) for k, v in rows.items()})
 
 
@@ -254,10 +309,12 @@ def generate(
     sizes: bool = True,
     distractors: bool = True,
     progress: Callable[[int, int], None] | None = None,
+    noise: DepthNoise | None = None,
 ) -> GraspDataset:
-    """`scenes_per_kind` usable scenes of each kind (`scene_samples`), seeded: scene i of kind
-    k (its index in sim.tasks.KINDS, so that a subset of kinds gives the same scenes) draws
-    from np.random.default_rng([seed, k, i, attempt])."""
+    """`scenes_per_kind` usable scenes of each kind (`scene_samples`, the sensor's `noise`:
+    sim.camera's default when None), seeded: scene i of kind k (its index in sim.tasks.KINDS,
+    so that a subset of kinds gives the same scenes) draws from
+    np.random.default_rng([seed, k, i, attempt])."""
     if scenes_per_kind < 1:
         raise InvalidInputError(f"scenes_per_kind: {scenes_per_kind}; valid: >= 1")
     if crops_per_view < 1:
@@ -272,7 +329,9 @@ def generate(
         for i in range(scenes_per_kind):
             for attempt in range(20):
                 rng = np.random.default_rng([seed, k, i, attempt])
-                part = scene_samples(kind, rng, robots, crops_per_view, sizes, distractors)
+                part = scene_samples(
+                    kind, rng, robots, crops_per_view, sizes, distractors, noise=noise
+                )
                 if part is not None:
                     parts.append(part)
                     break
