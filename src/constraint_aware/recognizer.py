@@ -17,9 +17,10 @@ is the contact points to grasp. Here:
   closure) axis at its middle; a plate's or a knob's (passive closure) top-face centre; for a
   pole (active closure), which the hand may squeeze anywhere along, the point of its axis at
   the demonstrated height, kept `POLE_TOP_MARGIN` below its top.
-- The approach is the crop's for bars (the panel behind them), plates and knobs (their top
-  face; a knob's found around the contact point, `face_normal`) and the demonstration's
-  nominal one for poles (`NOMINAL_APPROACH`).
+- The approach is the crop's for bars (the panel behind them) and plates (their top face),
+  the demonstration's nominal one for poles (`NOMINAL_APPROACH`), and for knobs the nominal
+  one unless the knob's top face, found around the contact point, contradicts it
+  (`knob_approach`).
 - Two methods: `GeometricRecognizer` segments the surface that stands out near the
   demonstrated point and takes its centre and the normal of the surface around it;
   `ContactPointRecognizer` is a small CNN (weights `.npz` + JSON card, like the policy,
@@ -222,6 +223,24 @@ def face_normal(height: FloatArray, point: FloatArray) -> FloatArray:
     return _plane_fit(cells[face])[0]
 
 
+#: [deg] A knob's face normal replaces the demonstration's approach only beyond this angle
+#: from it: the two fits' own errors together stay below it where the demonstration is right
+#: (docs/design/recognizer.md), and within it the demonstration's, a hinge fit over the whole
+#: turn, varies less than a face fitted to a few depth cells.
+FACE_OVER_NOMINAL_DEG = 15.0
+
+
+def knob_approach(height: FloatArray, point: FloatArray) -> FloatArray:
+    """(3,) unit, crop frame: a knob's approach. The crop frame's z (the demonstration's
+    nominal approach) unless the knob's top face (`face_normal` around `point` (3,) [m] in
+    `height` (P, P) [m]) tilts more than `FACE_OVER_NOMINAL_DEG` from it: then the face's
+    normal (a demonstration whose hinge fit is off)."""
+    normal = face_normal(height, point)
+    if float(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0)))) > FACE_OVER_NOMINAL_DEG:
+        return normal
+    return np.array([0.0, 0.0, 1.0])
+
+
 def _plane_fit(points: FloatArray) -> tuple[FloatArray, FloatArray]:
     """The least-squares plane through points (N, 3): its unit normal (z >= 0) and centroid."""
     centre = points.mean(axis=0)
@@ -259,8 +278,8 @@ class GeometricRecognizer:
       nominal one for a pole (a cylinder's surface does not fix it).
     - plate and knob: the top face is the component nearest the centre of the cells within
       `top_layer` of the highest surface within `near` of the centre; the contact point is
-      its centroid at its median height, the approach its plane's normal (a knob's: the
-      face grown around that centroid, `face_normal`).
+      its centroid at its median height, the approach its plane's normal (a knob's:
+      `knob_approach` around that centroid).
     """
 
     name = "geometric"
@@ -279,7 +298,7 @@ class GeometricRecognizer:
         elif shape in ("plate", "knob"):
             point, approach = self._top_face(height)
             if shape == "knob":
-                approach = face_normal(height, point)
+                approach = knob_approach(height, point)
         else:
             raise UnknownNameError("handle shape", shape, HANDLE_SHAPES)
         return _local_result(point, approach, frame, self.name, shape)
@@ -597,8 +616,8 @@ class ContactPointRecognizer:
     def predict(self, heights: FloatArray, shapes: list[str]) -> tuple[FloatArray, FloatArray]:
         """Crop-frame contact points (N, 3) [m] and approaches (N, 3) of height maps (N, H, W)
         [m] for their handle shapes (N names of `HANDLE_SHAPES`). The network gives the
-        points and the approach of bars and plates; a knob's approach is its top face's
-        normal around the network's point (`face_normal`), a pole's the nominal one."""
+        points and the approach of bars and plates; a knob's approach is `knob_approach`
+        around the network's point, a pole's the nominal one."""
         idx = [_shape_index(s) for s in shapes]
         x = network_input(np.asarray(heights))
         points, approaches = decode(forward(self.weights, x, np.asarray(idx)))
@@ -606,7 +625,7 @@ class ContactPointRecognizer:
         approaches[nominal] = [0.0, 0.0, 1.0]
         maps = np.asarray(heights, dtype=float)
         for i in np.flatnonzero(np.asarray(shapes) == "knob"):
-            approaches[i] = face_normal(maps[i], points[i])
+            approaches[i] = knob_approach(maps[i], points[i])
         return points, approaches
 
     def recognize(self, height: FloatArray, frame: GraspFrame, shape: str) -> Recognition:
