@@ -19,6 +19,15 @@ from constraint_aware.control.controllers import ControlInput, FixedDirection
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+#: The files whose tests take longest (mypy over the tree; a quick bench each), collected
+#: first: `--dist loadfile` gives each file to one worker in collection order, and a long one
+#: handed out last leaves the other worker idle until it ends.
+LONGEST_FIRST = ("test_lint.py", "test_bench.py", "test_bench_choices.py")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    items.sort(key=lambda item: item.path.name not in LONGEST_FIRST)  # stable: else in order
+
 
 @pytest.fixture
 def rng() -> np.random.Generator:

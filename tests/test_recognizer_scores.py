@@ -11,11 +11,11 @@ from constraint_aware.lfo.grasp_data import GraspDataset
 from constraint_aware.lfo.grasp_training import demonstration_scores, score
 from constraint_aware.recognizer import (
     CROP_PIXELS,
+    FACE_OVER_NOMINAL_DEG,
     HANDLE_SHAPES,
     NOMINAL_APPROACH,
     ContactPointRecognizer,
     GeometricRecognizer,
-    FACE_OVER_NOMINAL_DEG,
     cell_centres,
     face_normal,
     knob_approach,
