@@ -90,8 +90,9 @@ def true_direction() -> type[TrueDirection]:
 # --- `cap bench --quick`, once per test session ---------------------------------------------
 @pytest.fixture(scope="session")
 def quick_bench_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The folder of `cap bench --quick` (the shipped policy, the hook hand): run once per test
-    session and shared by every xdist worker (the first to ask runs it, the others wait for it
+    """The folder of `cap bench --quick` (the shipped policy, the hook hand), in one process
+    (the results do not depend on the workers: tests/test_sweep.py; the suite's own workers
+    have the cores): run once per test session and shared by every xdist worker (the first to ask runs it, the others wait for it
     and read it). Tests must not change its results.json."""
     root = tmp_path_factory.getbasetemp()
     if os.environ.get("PYTEST_XDIST_WORKER"):
@@ -101,7 +102,7 @@ def quick_bench_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
         if not (out / "report.md").is_file():
             proc = subprocess.run(
                 [sys.executable, "-m", "constraint_aware.cli", "bench", "--quick", "--force",
-                 "--out", str(out)],
+                 "--workers", "1", "--out", str(out)],
                 capture_output=True, text=True, timeout=900,
             )  # fmt: skip
             assert proc.returncode == 0, proc.stdout + proc.stderr

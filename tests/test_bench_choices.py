@@ -26,7 +26,7 @@ def chosen_bench(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     (its directory, its stderr)."""
     out = tmp_path_factory.mktemp("bench-chosen")
     proc = subprocess.run(
-        [sys.executable, "-c", WITHOUT_DM_CONTROL, "bench", "--quick", "--out", str(out),
+        [sys.executable, "-c", WITHOUT_DM_CONTROL, "bench", "--quick", "--workers", "1", "--out", str(out),
          "--policy", "paper", "--robot", CHOSEN_ROBOT],
         capture_output=True, text=True, timeout=900,
     )  # fmt: skip
