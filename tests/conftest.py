@@ -92,8 +92,8 @@ def true_direction() -> type[TrueDirection]:
 def quick_bench_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The folder of `cap bench --quick` (the shipped policy, the hook hand), in one process
     (the results do not depend on the workers: tests/test_sweep.py; the suite's own workers
-    have the cores): run once per test session and shared by every xdist worker (the first to ask runs it, the others wait for it
-    and read it). Tests must not change its results.json."""
+    have the cores): run once per test session and shared by every xdist worker (the first
+    to ask runs it, the others wait for it and read it). Tests must not change its results.json."""
     root = tmp_path_factory.getbasetemp()
     if os.environ.get("PYTEST_XDIST_WORKER"):
         root = root.parent  # the session's folder, shared by its workers

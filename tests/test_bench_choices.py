@@ -26,8 +26,8 @@ def chosen_bench(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     (its directory, its stderr)."""
     out = tmp_path_factory.mktemp("bench-chosen")
     proc = subprocess.run(
-        [sys.executable, "-c", WITHOUT_DM_CONTROL, "bench", "--quick", "--workers", "1", "--out", str(out),
-         "--policy", "paper", "--robot", CHOSEN_ROBOT],
+        [sys.executable, "-c", WITHOUT_DM_CONTROL, "bench", "--quick", "--workers", "1",
+         "--out", str(out), "--policy", "paper", "--robot", CHOSEN_ROBOT],
         capture_output=True, text=True, timeout=900,
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout + proc.stderr
