@@ -232,7 +232,7 @@ def _run_condition_job(
 
 
 def closed_loop_cases() -> list[Condition]:
-    """The issue's named resistance cases (door hinge friction 2x/4x/8x, radius 0.08 m and
+    """The named resistance cases (door hinge friction 2x/4x/8x, radius 0.08 m and
     0.35 m, drawer rail friction 4 and 8 N, drawer mass 8 kg, pole friction 4 N)."""
     conds = []
     for f in (1.0, 2.0, 4.0):
@@ -362,7 +362,7 @@ def resistance_map(quick: bool = False) -> list[Condition]:
             add("preload release", p, task, (), preload_N=p)
     for r in (0.06, 0.08, 0.2, 0.35, 0.8):
         add("hinge radius", r, "door-opening", (("object__radius", r),))
-    # the issue's named cases beyond the preset multiples
+    # the named cases beyond the preset multiples
     for f in (4.0, 8.0):
         add("drawer rail friction N", f, "drawer-opening", (("object__frictionloss", f),))
     add("drawer mass kg", 8.0, "drawer-opening", (("object__mass", 8.0),))
