@@ -184,7 +184,7 @@ def test_hand_weight_compensation_removes_the_weight_at_rest() -> None:
 @pytest.mark.parametrize("controller", ["policy", "classical"])
 def test_a_wrong_sign_of_the_revolute_normal_is_corrected(task: str, controller: str) -> None:
     """The workplane normal's sign comes from the hinge's side, not from the user: a normal of
-    the wrong sign no longer turns the hand backwards (the issue: 4/10 success, 129 deg off)."""
+    the wrong sign no longer turns the hand backwards (uncorrected: 4/10 successes, 129 deg off)."""
     spec = RunSpec(
         task, controller, 15.0, overrides=(("executor__workplane_normal", (0.0, 0.0, -1.0)),)
     )

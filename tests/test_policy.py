@@ -340,7 +340,7 @@ def test_matches_stable_baselines3_deterministic_action(tmp_path: Path) -> None:
 
 
 def test_default_opens_a_stiff_door_with_the_derived_dead_band() -> None:
-    """Issue 9: the door with 8x hinge friction at the dead band derived from the simulated
+    """The door with 8x hinge friction at the dead band derived from the simulated
     sensor's noise (0.1 N): the default policy succeeds, the paper's policy does not."""
     from constraint_aware.control.simulate import RunSpec, run
 
