@@ -270,6 +270,7 @@ def run_many(
 
     On `executor` if given, else on the one set by `use_executor`, else in a local process pool
     of `workers` processes (default: `default_workers`); one worker runs them in this process.
+    Inside a `reuse_runs` block a run already made there is not made again.
     """
     memo = _RUN_MEMO.get()
     if memo is None:
