@@ -44,7 +44,7 @@ from numpy.typing import NDArray
 from scipy import ndimage
 
 from constraint_aware.errors import CapError, InvalidInputError, UnknownNameError
-from constraint_aware.geometry import FloatArray, unit
+from constraint_aware.geometry import FloatArray, angle_deg, unit
 
 BoolArray = NDArray[np.bool_]
 
@@ -235,10 +235,9 @@ def knob_approach(height: FloatArray, point: FloatArray) -> FloatArray:
     nominal approach) unless the knob's top face (`face_normal` around `point` (3,) [m] in
     `height` (P, P) [m]) tilts more than `FACE_OVER_NOMINAL_DEG` from it: then the face's
     normal (a demonstration whose hinge fit is off)."""
+    nominal = np.array([0.0, 0.0, 1.0])
     normal = face_normal(height, point)
-    if float(np.degrees(np.arccos(np.clip(normal[2], -1.0, 1.0)))) > FACE_OVER_NOMINAL_DEG:
-        return normal
-    return np.array([0.0, 0.0, 1.0])
+    return normal if float(angle_deg(normal, nominal)) > FACE_OVER_NOMINAL_DEG else nominal
 
 
 def _plane_fit(points: FloatArray) -> tuple[FloatArray, FloatArray]:
