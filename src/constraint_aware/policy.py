@@ -77,6 +77,9 @@ POLICY_NAMES = ("default", "paper")
 DEFAULT_POLICY_NAME = "default"
 #: [N] default dead band of `update_direction`: deadband.py's floor (the training threshold).
 DEFAULT_THRESHOLD = MIN_THRESHOLD
+#: I (3, 3), built once: `mirror_average` needs it every control step
+_EYE3 = np.eye(3)
+_EYE3.setflags(write=False)
 _MAX_LAYERS = 16
 _MAX_WIDTH = 4096
 #: A policy's files are read as untrusted input: the card and the weights (uncompressed) are
@@ -236,12 +239,14 @@ def mirror_average(
     if size < 1e-9:  # d along n: no in-plane side to mirror
         return policy.act_batch(obs[None, :])[0]
     m = m / size
-    mirror = np.eye(3) - 2.0 * (m[:, None] * m)
+    mirror = _EYE3 - 2.0 * (m[:, None] * m)
     pair = np.empty((2, obs.size))
     pair[0] = pair[1] = obs
     for start in policy.vector_blocks:
         pair[1, start : start + 3] = mirror @ obs[start : start + 3]
-    a, a_mirrored = policy.act_batch(pair)
+    # the observation's vectors are checked and finite, so is its mirror image: the network
+    # directly, without act_batch's checks
+    a, a_mirrored = policy._forward(pair)
     return np.asarray(0.5 * (a + mirror @ a_mirrored))
 
 
@@ -414,11 +419,14 @@ class ConstraintAwarePolicy:
         """The network on checked observations (N, n_in): (N, 3) in [-1, 1]."""
         h = obs
         last = len(self._weights) - 1
+        # in place where the product is a fresh array: the same floats, fewer allocations
         for i, (w, b) in enumerate(zip(self._weights, self._biases, strict=True)):
-            h = h @ w + b
+            h = h @ w
+            h += b
             if i < last:
-                h = np.tanh(h)
-        return np.minimum(np.maximum(h, -1.0), 1.0)  # np.clip, without its overhead
+                np.tanh(h, out=h)
+        np.maximum(h, -1.0, out=h)
+        return np.minimum(h, 1.0, out=h)  # np.clip, without its overhead
 
     def act(self, force_unit: ArrayLike, direction: ArrayLike, *extra: float) -> FloatArray:
         """Action (3,) in [-1, 1] for a unit (or zero) force and a unit motion direction.
@@ -497,7 +505,11 @@ def _vector(value: ArrayLike, name: str) -> FloatArray:
     otherwise (a complex value would lose its imaginary part, an overflowing norm would turn
     the vector into an unrelated direction)."""
     if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (3,):
-        # the executor's own readings, every control period: only the values to check
+        # the executor's own readings, every control period: only the values to check. A
+        # finite norm implies finite elements, so one sum of squares checks both.
+        x, y, z = value.tolist()
+        if math.isfinite(math.sqrt(x * x + y * y + z * z)):
+            return value
         if not all_finite(value):
             raise InvalidInputError(f"{name}: contains NaN or inf")
         return _finite_norm(value, name)

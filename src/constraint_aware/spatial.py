@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,3 +89,33 @@ class Pose:
         """Translated, and rotated about the tool point (world-frame rotation applied first)."""
         rot = self.orientation if rotation is None else rotation * self.orientation
         return Pose(np.asarray(self.position + translation, dtype=float), rot)
+
+
+def turned(rotvec: FloatArray, orientation: Rotation) -> Rotation:
+    """`Rotation.from_rotvec(rotvec) * orientation`: `orientation` (a single Rotation) turned
+    by the rotation vector `rotvec` (3,) [rad] in the world frame, with the same floats.
+
+    The executor turns the hand this way every control period on revolute constraints, where
+    scipy's per-call overhead dominates: the rotation vector's quaternion and the product are
+    computed in Python floats with scipy's formulas (its small-angle series below 1e-3 rad,
+    its quaternion product), and only the result is built as a Rotation (normalized, as
+    scipy's composition normalizes it).
+    """
+    x, y, z = np.asarray(rotvec, dtype=float).tolist()
+    angle = math.sqrt(x * x + y * y + z * z)
+    if angle <= 1e-3:  # scipy's series for sin(angle / 2) / angle
+        angle2 = angle * angle
+        scale = 0.5 - angle2 / 48 + angle2 * angle2 / 3840
+    else:
+        scale = math.sin(angle / 2) / angle
+    p0, p1, p2, p3 = scale * x, scale * y, scale * z, math.cos(angle / 2)
+    q0, q1, q2, q3 = orientation.as_quat(canonical=False).tolist()
+    c0, c1, c2 = p1 * q2 - p2 * q1, p2 * q0 - p0 * q2, p0 * q1 - p1 * q0  # p x q
+    return Rotation.from_quat(
+        [
+            p3 * q0 + q3 * p0 + c0,
+            p3 * q1 + q3 * p1 + c1,
+            p3 * q2 + q3 * p2 + c2,
+            p3 * q3 - p0 * q0 - p1 * q1 - p2 * q2,
+        ]
+    )

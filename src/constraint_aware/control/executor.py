@@ -57,7 +57,7 @@ from constraint_aware.control.guards import (
     force_limit_stop,
     step_length_stop,
 )
-from constraint_aware.control.motion import next_target, orient_normal, paper_rotation
+from constraint_aware.control.motion import next_target, orient_normal, paper_turn
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import OUTCOMES, RunRecord, measured_step
 from constraint_aware.control.robot import (
@@ -71,7 +71,7 @@ from constraint_aware.control.run_inputs import INPUT_NAMES, RunInput
 from constraint_aware.control.run_state import RunState, begin_run, goal_reached, sample_offset
 from constraint_aware.errors import InvalidInputError, check_choice
 from constraint_aware.geometry import FloatArray, all_finite, in_plane, norm, unit
-from constraint_aware.spatial import Pose, Wrench
+from constraint_aware.spatial import Pose, Wrench, turned
 
 __all__ = [
     "INPUT_NAMES",
@@ -289,7 +289,7 @@ class Executor:
         if stop := direction_stop(raw):
             return self._end(st, stop)
         d_next = project_on_plane(unit(raw), st.normal)
-        rotation = self._hand_rotation(st, d_next, torque)
+        orientation = self._turned_hand(st, d_next, torque)
         length = float(self.controller.step_length(cfg.step_length))
         if stop := step_length_stop(length, cfg.step_length):
             return self._end(st, stop)
@@ -302,8 +302,8 @@ class Executor:
         target = next_target(
             st.target, pose.position, d_next * length, st.normal, cfg.step_length, reanchor
         )
-        if rotation is not None:
-            target = Pose(target.position, rotation * target.orientation)
+        if orientation is not None:
+            target = Pose(target.position, orientation)
         # a robot not following its setpoint (frozen, e-stopped, clamped): do not let the
         # target run away, or the robot lunges when it resumes
         held, stop = st.lead.check(norm(target.position - pose.position))
@@ -328,22 +328,29 @@ class Executor:
         st.self_check.note_move(0.0)
         return st.target
 
-    def _hand_rotation(
-        self, st: RunState, d_next: FloatArray, torque: FloatArray
-    ) -> Rotation | None:
-        """This step's hand rotation; None on a prismatic constraint (the hand keeps its
-        orientation)."""
+    def _turned_hand(self, st: RunState, d_next: FloatArray, torque: FloatArray) -> Rotation | None:
+        """The target's orientation after this step's hand rotation (world frame, applied to
+        the last target's); None on a prismatic constraint (the hand keeps its orientation).
+
+        A controller's own rotation comes first: its `hand_turn()` rotation vector [rad] when
+        it has one (composed without building a Rotation for it, `spatial.turned`), else its
+        `hand_rotation()`; then the torque policy's w about n; else paper 3.4.1's turn."""
         if self.config.constraint_type != "revolute":
             return None
+        orientation = st.target.orientation
+        hand_turn = getattr(self.controller, "hand_turn", None)
+        own_turn = hand_turn() if hand_turn is not None else None
+        if own_turn is not None:
+            return turned(own_turn, orientation)
         own = self.controller.hand_rotation()
         if own is not None:
-            return own
+            return own * orientation
         tp, normal = st.torque_policy, st.normal
         if tp is not None and normal is not None:
             if st.moves > 0:  # the torque read now results from the previous step's rotation
                 tp.update(torque, normal)
-            return Rotation.from_rotvec(tp.w * normal)
-        return paper_rotation(st.direction, d_next)
+            return turned(tp.w * normal, orientation)
+        return turned(paper_turn(st.direction, d_next), orientation)
 
     @staticmethod
     def _hand_travel(st: RunState, pose: Pose) -> float | None:

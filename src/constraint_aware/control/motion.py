@@ -6,7 +6,7 @@
   become a large command; the error along the direction and along the normal is kept, so the
   target stays smooth along the motion and a press keeps its depth, while each step's
   constraint force comes from that step's move alone, as in the training environment.
-- `paper_rotation`: on revolute constraints the hand turns by the rotation taking d_t to
+- `paper_turn`: on revolute constraints the hand turns by the rotation taking d_t to
   d_{t+1} (paper 3.4.1).
 - `orient_normal`: the workplane normal's sense from the hinge, so that the motion turns
   positively about it (the sense paper 3.4.1's rotation and the torque policy assume).
@@ -18,7 +18,6 @@ import math
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.guards import REANCHOR_LIMIT_STEPS
 from constraint_aware.errors import InvalidInputError
@@ -43,15 +42,15 @@ def orient_normal(
     return n if sense > 0 else -n
 
 
-def paper_rotation(d: FloatArray, d_next: FloatArray) -> Rotation:
-    """The rotation about d_t x d_{t+1} (3,) by the angle between them (paper 3.4.1); the
-    identity for parallel directions."""
+def paper_turn(d: FloatArray, d_next: FloatArray) -> FloatArray:
+    """The rotation vector [rad] (3,) about d_t x d_{t+1} (3,) by the angle between them
+    (paper 3.4.1); zero for parallel directions."""
     axis = cross(d, d_next)
     s = norm(axis)
     if s < 1e-12:
-        return Rotation.identity()
+        return np.zeros(3)
     angle = math.atan2(s, float(d @ d_next))
-    return Rotation.from_rotvec(axis / s * angle)
+    return np.asarray(axis / s * angle)
 
 
 def next_target(

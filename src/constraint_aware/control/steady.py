@@ -208,6 +208,11 @@ class SteadyDirection:
     def hand_rotation(self) -> Rotation | None:
         return None if self._rotation is None else Rotation.from_rotvec(self._rotation)
 
+    def hand_turn(self) -> FloatArray | None:
+        """This step's hand rotation as a rotation vector (3,) [rad] (`hand_rotation`'s), or
+        None; the executor composes it with the hand's orientation (`spatial.turned`)."""
+        return self._rotation
+
     def next_direction(self, inp: ControlInput) -> FloatArray:
         self._readings += 1
         d = np.asarray(inp.direction, dtype=float)
