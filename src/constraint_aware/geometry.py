@@ -94,7 +94,8 @@ def angle_deg(a: FloatArray, b: FloatArray) -> FloatArray | float:
     if a.shape == (3,) and b.shape == (3,):
         a0, a1, a2 = a.tolist()
         b0, b1, b2 = b.tolist()
-        c = _row_norm(cross(a, b))
+        c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0  # a x b
+        c = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
         return math.degrees(math.atan2(c, a0 * b0 + a1 * b1 + a2 * b2))
     cross_norm = np.linalg.norm(np.cross(a, b), axis=-1)
     dot = np.sum(a * b, axis=-1)
@@ -136,7 +137,17 @@ def rotate_about(v: FloatArray, axis: FloatArray, angle_rad: FloatArray | float)
         a0, a1, a2 = axis.tolist()
         v0, v1, v2 = v.tolist()
         along = a0 * v0 + a1 * v1 + a2 * v2
-        return v * cos + cross(axis, v) * sin + axis * along * (1.0 - cos)
+        c0, c1, c2 = a1 * v2 - a2 * v1, a2 * v0 - a0 * v2, a0 * v1 - a1 * v0  # axis x v
+        rest = 1.0 - cos
+        # element by element, in the batched path's order: v cos + (axis x v) sin + axis along
+        # (1 - cos)
+        return np.array(
+            [
+                v0 * cos + c0 * sin + a0 * along * rest,
+                v1 * cos + c1 * sin + a1 * along * rest,
+                v2 * cos + c2 * sin + a2 * along * rest,
+            ]
+        )
     ang = np.asarray(angle_rad, dtype=np.float64)[..., None]
     c, s = np.cos(ang), np.sin(ang)
     kv = np.sum(axis * v, axis=-1, keepdims=True)

@@ -77,9 +77,6 @@ POLICY_NAMES = ("default", "paper")
 DEFAULT_POLICY_NAME = "default"
 #: [N] default dead band of `update_direction`: deadband.py's floor (the training threshold).
 DEFAULT_THRESHOLD = MIN_THRESHOLD
-#: I (3, 3), built once: `mirror_average` needs it every control step
-_EYE3 = np.eye(3)
-_EYE3.setflags(write=False)
 _MAX_LAYERS = 16
 _MAX_WIDTH = 4096
 #: A policy's files are read as untrusted input: the card and the weights (uncompressed) are
@@ -191,12 +188,15 @@ class DirectionUpdater:
         f_hat = normalize_force(f, thr)
         force_norm = norm(f)
         current = np.concatenate([f_hat, d])
+        # a reading within the dead band normalizes to zero: no force (Python's any() on the
+        # three floats is ndarray.any's truth, without its overhead)
+        has_force = any(f_hat.tolist())
         if p.observation == "history":
             obs = np.concatenate([current, self._previous])
             self._previous = current
         elif p.observation in MAGNITUDE_OBSERVATIONS:
             ratio = 0.0
-            if step_force is not None and f_hat.any():
+            if step_force is not None and has_force:
                 ratio = min(force_norm / float(step_force), MAGNITUDE_CLIP)
             extra = (
                 [ratio] if p.observation == "magnitude" else [ratio, float(step_force is not None)]
@@ -204,7 +204,7 @@ class DirectionUpdater:
             obs = np.concatenate([current, extra])
         else:
             obs = current
-        if not f_hat.any():
+        if not has_force:
             return d
         blocked = step_force is None or force_norm >= step_force
         # the network's action as it is (the paper's rule) without n, or for a blocked step
@@ -238,8 +238,16 @@ def mirror_average(
     size = norm(m)
     if size < 1e-9:  # d along n: no in-plane side to mirror
         return policy.act_batch(obs[None, :])[0]
-    m = m / size
-    mirror = _EYE3 - 2.0 * (m[:, None] * m)
+    # M = I - 2 m m^T element by element in Python floats (the floats numpy's I - 2.0 * (m m^T)
+    # gives), built as one array
+    m0, m1, m2 = (m / size).tolist()
+    mirror = np.array(
+        [
+            [1.0 - 2.0 * (m0 * m0), 0.0 - 2.0 * (m0 * m1), 0.0 - 2.0 * (m0 * m2)],
+            [0.0 - 2.0 * (m1 * m0), 1.0 - 2.0 * (m1 * m1), 0.0 - 2.0 * (m1 * m2)],
+            [0.0 - 2.0 * (m2 * m0), 0.0 - 2.0 * (m2 * m1), 1.0 - 2.0 * (m2 * m2)],
+        ]
+    )
     pair = np.empty((2, obs.size))
     pair[0] = pair[1] = obs
     for start in policy.vector_blocks:

@@ -20,7 +20,7 @@ from constraint_aware.control.interface import (
 )
 from constraint_aware.control.steady import STEADY_STAGES, SteadyConfig, SteadyDirection
 from constraint_aware.errors import ConfigError, UnknownNameError
-from constraint_aware.geometry import FloatArray, normalize_force, unit, update_direction_rule
+from constraint_aware.geometry import FloatArray, norm, normalize_force, unit, update_direction_rule
 from constraint_aware.policy import ConstraintAwarePolicy
 
 __all__ = [
@@ -192,4 +192,4 @@ def project_on_plane(direction: FloatArray, normal: FloatArray | None) -> FloatA
     if normal is None:
         return direction
     p = direction - float(direction @ normal) * normal
-    return unit(p) if np.linalg.norm(p) > 1e-6 else direction
+    return unit(p) if norm(p) > 1e-6 else direction

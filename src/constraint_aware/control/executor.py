@@ -358,7 +358,7 @@ class Executor:
         workplane when it is known; None before the first move."""
         if st.command_position is None:
             return None
-        return float(np.linalg.norm(in_plane(pose.position - st.command_position, st.normal)))
+        return norm(in_plane(pose.position - st.command_position, st.normal))
 
     # --- ending ------------------------------------------------------------------------------
     def _end(self, st: RunState, stop: Stop) -> RunRecord:

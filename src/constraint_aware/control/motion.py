@@ -66,15 +66,26 @@ def next_target(
     (or in 3-D without one), at most REANCHOR_LIMIT_STEPS x `step_length` [m] long."""
     if not reanchor:
         return target.moved(move)
-    err = measured - target.position
-    if normal is not None:
-        err = err - float(err @ normal) * normal
-    n_move = norm(move)
-    if n_move > 1e-12:
-        d = move / n_move
-        err = err - float(err @ d) * d
+    # in Python floats, every control period (numpy's per-call overhead on 3-vectors is many
+    # times the arithmetic): each product and sum in numpy's order, dot products summed
+    # x, y, z in turn
+    t0, t1, t2 = target.position.tolist()
+    m0, m1, m2 = np.asarray(measured, dtype=float).tolist()
+    v0, v1, v2 = np.asarray(move, dtype=float).tolist()
+    e0, e1, e2 = m0 - t0, m1 - t1, m2 - t2  # the tracking error
+    if normal is not None:  # ... in the workplane
+        n0, n1, n2 = np.asarray(normal, dtype=float).tolist()
+        k = e0 * n0 + e1 * n1 + e2 * n2
+        e0, e1, e2 = e0 - k * n0, e1 - k * n1, e2 - k * n2
+    n_move = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    if n_move > 1e-12:  # ... across the move
+        d0, d1, d2 = v0 / n_move, v1 / n_move, v2 / n_move
+        k = e0 * d0 + e1 * d1 + e2 * d2
+        e0, e1, e2 = e0 - k * d0, e1 - k * d1, e2 - k * d2
     limit = REANCHOR_LIMIT_STEPS * step_length
-    size = norm(err)
+    size = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
     if size > limit:
-        err = err * (limit / size)
-    return Pose(target.position + err + move, target.orientation)
+        scale = limit / size
+        e0, e1, e2 = e0 * scale, e1 * scale, e2 * scale
+    position = np.array([t0 + e0 + v0, t1 + e1 + v1, t2 + e2 + v2])
+    return Pose(position, target.orientation)

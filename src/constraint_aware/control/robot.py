@@ -187,6 +187,11 @@ def _positive_report(robot: object, name: str, unit: str) -> tuple[float | None,
 def checked_vector(value: object, name: str, *, finite: bool = False) -> FloatArray:
     """`value` as a real float64 array of shape (3,); InvalidInputError naming `name` for any
     other type, shape or dtype (complex, bool, text, objects), and with `finite` for NaN/inf."""
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (3,):
+        # a robot's own reading, every control period: a copy (the robot may reuse its buffer)
+        if finite and not all(map(math.isfinite, value.tolist())):
+            raise InvalidInputError(f"{name}: contains NaN or inf: {value!r}")
+        return value.copy()
     try:
         arr = np.asarray(value)
     except (TypeError, ValueError) as exc:  # e.g. ragged nested sequences

@@ -54,7 +54,7 @@ from constraint_aware.control.sensor_health import SensorHealth
 from constraint_aware.control.torque_policy import TorquePolicy
 from constraint_aware.deadband import noise_std, threshold_from_noise
 from constraint_aware.errors import InvalidInputError
-from constraint_aware.geometry import FloatArray, unit
+from constraint_aware.geometry import FloatArray, norm, unit
 from constraint_aware.spatial import Pose, Wrench
 
 
@@ -227,7 +227,7 @@ def goal_reached(st: RunState, goal: GoalConfig, pose: Pose) -> str:
     if st.start_pose is None or st.record.goal is None:
         return ""
     if goal.travel is not None:
-        travel = float(np.linalg.norm(pose.position - st.start_pose.position))
+        travel = norm(pose.position - st.start_pose.position)
         st.record.goal["reached"] = travel
         if travel >= goal.travel:
             return f"goal: travel {travel * 100:.1f} cm >= {goal.travel * 100:.1f} cm"
