@@ -131,7 +131,8 @@ def update_direction_rule(direction: FloatArray, action: FloatArray) -> FloatArr
 def rotate_about(v: FloatArray, axis: FloatArray, angle_rad: FloatArray | float) -> FloatArray:
     """Rodrigues rotation of v about the unit `axis` by `angle_rad` (batched on the last axis)."""
     v, axis = np.asarray(v, dtype=np.float64), np.asarray(axis, dtype=np.float64)
-    if v.shape == (3,) and axis.shape == (3,) and np.ndim(angle_rad) == 0:
+    scalar = type(angle_rad) is float or np.ndim(angle_rad) == 0  # a float: skip np.ndim
+    if v.shape == (3,) and axis.shape == (3,) and scalar:
         # numpy's cos and sin (not math's): the same floats as the batched path
         cos, sin = float(np.cos(angle_rad)), float(np.sin(angle_rad))
         a0, a1, a2 = axis.tolist()
@@ -179,9 +180,11 @@ def random_perpendicular(rng: np.random.Generator, axis: FloatArray) -> FloatArr
 def turn_vector(a: FloatArray, b: FloatArray) -> FloatArray:
     """The rotation vector (3,) [rad] turning unit a onto unit b about a x b (zero if equal;
     for opposite vectors, any perpendicular axis)."""
-    axis = cross(a, b)
-    s = norm(axis)
-    c = float(a @ b)
+    a0, a1, a2 = np.asarray(a, dtype=np.float64).tolist()
+    b0, b1, b2 = np.asarray(b, dtype=np.float64).tolist()
+    x, y, z = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0  # a x b
+    s = math.sqrt(x * x + y * y + z * z)
+    c = a0 * b0 + a1 * b1 + a2 * b2
     if s < 1e-12:
         if c > 0:
             return np.zeros(3)
@@ -189,4 +192,5 @@ def turn_vector(a: FloatArray, b: FloatArray) -> FloatArray:
         if norm(perp) < 1e-6:
             perp = cross(a, np.array([0.0, 1.0, 0.0]))
         return np.asarray(unit(perp) * math.pi)
-    return np.asarray(axis / s * math.atan2(s, c))
+    angle = math.atan2(s, c)
+    return np.array([x / s * angle, y / s * angle, z / s * angle])

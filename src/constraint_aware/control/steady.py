@@ -19,7 +19,6 @@ from constraint_aware.errors import check_number
 from constraint_aware.geometry import (
     FloatArray,
     all_finite,
-    cross,
     norm,
     rotate_about,
     turn_vector,
@@ -71,10 +70,14 @@ def across_force(inp: ControlInput) -> tuple[float, FloatArray] | None:
     is above the dead band."""
     if inp.workplane_normal is None:
         return None
-    m = unit(
-        cross(np.asarray(inp.workplane_normal, dtype=float), np.asarray(inp.direction, dtype=float))
-    )
-    return float(np.asarray(inp.force, dtype=float) @ m), m
+    # unit(n x d) and F.m in Python floats, in numpy's order (geometry.cross, geometry.unit)
+    n0, n1, n2 = np.asarray(inp.workplane_normal, dtype=float).tolist()
+    d0, d1, d2 = np.asarray(inp.direction, dtype=float).tolist()
+    c0, c1, c2 = n1 * d2 - n2 * d1, n2 * d0 - n0 * d2, n0 * d1 - n1 * d0
+    size = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
+    m0, m1, m2 = (c0 / size, c1 / size, c2 / size) if size > 1e-12 else (0.0, 0.0, 0.0)
+    f0, f1, f2 = np.asarray(inp.force, dtype=float).tolist()
+    return f0 * m0 + f1 * m1 + f2 * m2, np.array([m0, m1, m2])
 
 
 def _with_across(inp: ControlInput, across: tuple[float, FloatArray], value: float) -> ControlInput:
