@@ -17,11 +17,12 @@ lag model can never hide it. The constants' measured origins: docs/design/execut
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from constraint_aware.geometry import FloatArray, norm
+from constraint_aware.geometry import FloatArray
 
 
 @dataclass
@@ -76,11 +77,20 @@ class LagModel:
         """[m] (3,) `deflection` with the lag credit limited to the lag actually there: the
         part of the deflection against the hand's motion. An over-reported tau then adds
         nothing along the motion; a hand without velocity gets no credit."""
-        out = self.deflection(position, target, lag_share=0.0)
+        if self.deflection0 is None:
+            raise RuntimeError("LagModel.lagged_deflection: call begin() first")
+        # in Python floats (every control period), in the order of `deflection`'s numpy ops;
+        # dot products summed x, y, z in turn
+        p0, p1, p2 = np.asarray(position, dtype=float).tolist()
+        t0, t1, t2 = np.asarray(target, dtype=float).tolist()
+        b0, b1, b2 = self.deflection0.tolist()
+        o0, o1, o2 = p0 - t0 - b0, p1 - t1 - b1, p2 - t2 - b2
         tau = self.tracking_time_constant
-        speed = norm(self.velocity)
+        v0, v1, v2 = self.velocity.tolist()
+        speed = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
         if tau is None or speed < 1e-9:
-            return out
-        motion = self.velocity / speed
-        behind = max(0.0, -float(out @ motion))  # [m] how far the hand trails
-        return out + min(tau * speed, behind) * motion
+            return np.array([o0, o1, o2])
+        m0, m1, m2 = v0 / speed, v1 / speed, v2 / speed  # the direction of motion
+        behind = max(0.0, -(o0 * m0 + o1 * m1 + o2 * m2))  # [m] how far the hand trails
+        credit = min(tau * speed, behind)
+        return np.array([o0 + credit * m0, o1 + credit * m1, o2 + credit * m2])

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -83,7 +83,16 @@ def across_force(inp: ControlInput) -> tuple[float, FloatArray] | None:
 def _with_across(inp: ControlInput, across: tuple[float, FloatArray], value: float) -> ControlInput:
     """The reading with its force across d set to `value` [N], the rest as read."""
     force = np.asarray(inp.force, dtype=float)
-    return replace(inp, force=force + (value - across[0]) * across[1])
+    return _with_force(inp, force + (value - across[0]) * across[1])
+
+
+def _with_force(inp: ControlInput, force: FloatArray) -> ControlInput:
+    """`dataclasses.replace(inp, force=force)` for the frozen ControlInput (no __post_init__,
+    no slots): its fields copied as they are, where `replace` would re-run __init__ over every
+    field (several times the cost, once per control period)."""
+    out = object.__new__(ControlInput)
+    out.__dict__.update(inp.__dict__, force=force)
+    return out
 
 
 def travel_scaled(inp: ControlInput, across: tuple[float, FloatArray]) -> ControlInput:
