@@ -62,6 +62,7 @@ from constraint_aware.sim.robot_adapter import (
     TIMESTEP,
     add_wrench_filter,
     consecutive,
+    orientation_error,
     rotvec,
 )
 from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
@@ -646,8 +647,8 @@ class JacoSim(Embodiment):
             mujoco.mj_kinematics(m, d)
             mujoco.mj_comPos(m, d)
             pos = d.site_xpos[self._tcp_site]
-            rot = Rotation.from_matrix(d.site_xmat[self._tcp_site].reshape(3, 3))
-            err = np.concatenate([pose.position - pos, (pose.orientation * rot.inv()).as_rotvec()])
+            turn = orientation_error(pose.orientation, d.site_xmat[self._tcp_site])
+            err = np.concatenate([pose.position - pos, turn])
             if np.linalg.norm(err) < 1e-7:
                 break
             mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp_site)

@@ -76,6 +76,79 @@ def rotvec(rot: FloatArray) -> FloatArray:
     return np.array([x * f, y * f, z * f])
 
 
+def orientation_error(target: Rotation, matrix: FloatArray) -> FloatArray:
+    """(3,) [rad] `(target * Rotation.from_matrix(matrix).inv()).as_rotvec()`: the world-frame
+    rotation vector from an orientation `matrix` (9,) or (3, 3) to `target`, with the same floats.
+
+    An inverse-kinematics iteration asks this once per step, where scipy's checks and
+    dispatch cost ~100x the arithmetic: for a rotation matrix as MuJoCo computes them
+    (orthonormal to far below scipy's 1e-12 test) the quaternion, the product and the rotation
+    vector are computed in Python floats with scipy's formulas (its quaternion from an
+    orthogonal matrix, its normalization, its small-angle series below 1e-3 rad); any other
+    matrix goes to scipy, which orthonormalizes it first."""
+    m = np.asarray(matrix, dtype=float).reshape(3, 3).tolist()
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
+    gram_error = max(
+        abs(m00 * m00 + m01 * m01 + m02 * m02 - 1.0),
+        abs(m10 * m10 + m11 * m11 + m12 * m12 - 1.0),
+        abs(m20 * m20 + m21 * m21 + m22 * m22 - 1.0),
+        abs(m00 * m10 + m01 * m11 + m02 * m12),
+        abs(m00 * m20 + m01 * m21 + m02 * m22),
+        abs(m10 * m20 + m11 * m21 + m12 * m22),
+    )
+    det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (
+        m10 * m21 - m11 * m20
+    )
+    if not (gram_error <= 1e-13 and det > 0.5):  # scipy decides (and orthonormalizes)
+        current = Rotation.from_matrix(np.asarray(m))
+        return np.asarray((target * current.inv()).as_rotvec())
+    # the matrix's quaternion: scipy's case by the largest of the diagonal and the trace
+    trace = m00 + m11 + m22
+    decision = (m00, m11, m22, trace)
+    choice = max(range(4), key=decision.__getitem__)  # the first largest, as np.argmax
+    if choice == 3:
+        r = [m21 - m12, m02 - m20, m10 - m01, 1 + trace]
+    else:
+        i = choice
+        j = (i + 1) % 3
+        k = (j + 1) % 3
+        r = [0.0, 0.0, 0.0, 0.0]
+        r[i] = 1 - trace + 2 * m[i][i]
+        r[j] = m[j][i] + m[i][j]
+        r[k] = m[k][i] + m[i][k]
+        r[3] = m[k][j] - m[j][k]
+    r0, r1, r2, r3 = _normalized(r)
+    # target * the matrix's inverse (the conjugate quaternion): scipy's product, normalized
+    p0, p1, p2, p3 = target.as_quat(canonical=False).tolist()
+    q0, q1, q2, q3 = -r0, -r1, -r2, r3
+    c0, c1, c2 = p1 * q2 - p2 * q1, p2 * q0 - p0 * q2, p0 * q1 - p1 * q0
+    x, y, z, w = _normalized(
+        [
+            p3 * q0 + q3 * p0 + c0,
+            p3 * q1 + q3 * p1 + c1,
+            p3 * q2 + q3 * p2 + c2,
+            p3 * q3 - p0 * q0 - p1 * q1 - p2 * q2,
+        ]
+    )
+    # its rotation vector, from the quaternion with w >= 0
+    if w < 0:
+        x, y, z, w = -x, -y, -z, -w
+    angle = 2 * math.atan2(math.sqrt(x * x + y * y + z * z), w)
+    if angle <= 1e-3:  # scipy's series for angle / sin(angle / 2)
+        angle2 = angle * angle
+        scale = 2 + angle2 / 12 + 7 * angle2 * angle2 / 2880
+    else:
+        scale = angle / math.sin(angle / 2)
+    return np.array([scale * x, scale * y, scale * z])
+
+
+def _normalized(q: list[float]) -> tuple[float, float, float, float]:
+    """A quaternion (4,) divided by its norm, as scipy normalizes."""
+    x, y, z, w = q
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    return x / n, y / n, z / n, w / n
+
+
 def cross(a: FloatArray, b: FloatArray) -> FloatArray:
     """(..., 3) a x b for (..., 3) vectors (np.cross's axis handling costs more than the
     product at this size)."""
