@@ -10,6 +10,7 @@ Every controller runs with the same dead band, derived from the simulated sensor
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
@@ -152,6 +153,13 @@ def prepare_condition(
     return PreparedRun(sim, cfg, normal, d0, rate)
 
 
+@functools.cache
+def _shipped_policy(name: str) -> ConstraintAwarePolicy:
+    """A shipped policy by name, loaded once per process: runs only read a policy (each
+    controller keeps its own session)."""
+    return ConstraintAwarePolicy.load(name)
+
+
 def run_condition(
     cond: Condition,
     controller: str,
@@ -179,7 +187,7 @@ def run_condition(
         overrides=cond.overrides,
     )
     if policy_name is not None:
-        policy = ConstraintAwarePolicy.load(policy_name)
+        policy = _shipped_policy(policy_name)
     prep = prepare_condition(cond, spec, threshold)
     sim, cfg, normal, d0, rate = prep.sim, prep.config, prep.normal, prep.d0, prep.rotation_rate
     if controller in PROBED_LABELS:

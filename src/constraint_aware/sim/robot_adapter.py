@@ -18,6 +18,7 @@ are numpy matrices throughout; scipy's Rotation appears only where the `Robot` p
 
 from __future__ import annotations
 
+import functools
 import math
 from abc import ABC, abstractmethod
 
@@ -238,10 +239,14 @@ def period_substeps(period: float) -> int:
     return steps
 
 
+@functools.lru_cache(maxsize=1024)
 def step_rise_time(stiffness: float, damping: float, mass: float) -> float:
     """[s] when a mass-spring-damper's response to a setpoint step first reaches 1 - 1/e
     (63.2 %) of the step: the time constant of its first-order approximation. stiffness
-    [N/m or N m/rad], damping [N s/m or N m s/rad], mass [kg or kg m^2], all positive."""
+    [N/m or N m/rad], damping [N s/m or N m s/rad], mass [kg or kg m^2], all positive.
+
+    Cached (a pure function of its three numbers, solved by bisection): every run of a task
+    asks it for the same arm at the same grasp."""
     omega = math.sqrt(stiffness / mass)  # [rad/s] natural frequency
     zeta = damping / (2.0 * math.sqrt(stiffness * mass))
 
