@@ -39,7 +39,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from constraint_aware.control.interface import ControlInput
-from constraint_aware.geometry import FloatArray, unit
+from constraint_aware.geometry import FloatArray, cross, norm, unit
 
 
 @dataclass(frozen=True)
@@ -82,7 +82,7 @@ class ClassicalController:
         self.r_hat = self.axis0.copy() if self.axis0 is not None else np.array([0.0, 0.0, 1.0])
         self.i_t = np.zeros(3)
         self._step = 0.01
-        self._rotation: Rotation | None = None
+        self._turn: FloatArray | None = None  # [rad] this step's rotation vector
 
     def next_direction(self, inp: ControlInput) -> FloatArray:
         g = self.gains
@@ -91,7 +91,7 @@ class ClassicalController:
         plane = inp.workplane_normal
         if plane is not None:  # assumption 4, known to every controller: stay in the plane
             f = f - float(f @ plane) * plane
-        normal = unit(np.cross(self.t_hat, self.r_hat))
+        normal = unit(cross(self.t_hat, self.r_hat))
         f_e = f - g.f_d * normal
         p = np.eye(3) - np.outer(self.t_hat, self.t_hat)
         self.i_f = self.i_f + p @ f_e * dt
@@ -100,23 +100,24 @@ class ClassicalController:
         self.t_hat = unit(self.t_hat - g.gamma_t * g.v_d * (p @ v_f) * dt)
         if plane is not None:
             self.t_hat = unit(self.t_hat - float(self.t_hat @ plane) * plane)
-        self._step = float(np.linalg.norm(v_ref)) * dt
-        self._rotation = self._rotation_step(inp, normal) if self.w_d is not None else None
+        self._step = norm(v_ref) * dt
+        self._turn = self._rotation_step(inp, normal) if self.w_d is not None else None
         return unit(v_ref)
 
-    def _rotation_step(self, inp: ControlInput, normal: FloatArray) -> Rotation:
+    def _rotation_step(self, inp: ControlInput, normal: FloatArray) -> FloatArray:
+        """The rotational part's turn this step, w_ref dt [rad] (3,)."""
         g = self.gains
         assert self.w_d is not None
         tau = -inp.torque
         tau_e = tau - float(tau @ normal) * normal
-        if np.linalg.norm(tau_e) < g.torque_deadband:
+        if norm(tau_e) < g.torque_deadband:
             tau_e = np.zeros(3)
         p_r = np.eye(3) - np.outer(self.r_hat, self.r_hat)
         self.i_t = self.i_t + p_r @ tau_e * inp.dt
         w_f = g.alpha_t * tau_e + g.beta_t * self.i_t
         w_ref = self.w_d * self.r_hat - p_r @ w_f
         self.r_hat = unit(self.r_hat - g.gamma_r * self.w_d * (p_r @ w_f) * inp.dt)
-        return Rotation.from_rotvec(w_ref * inp.dt)
+        return np.asarray(w_ref * inp.dt)
 
     def step_length(self, nominal: float) -> float:
         """|v_ref| dt, capped at the executor's nominal step (1 cm)."""
@@ -124,7 +125,12 @@ class ClassicalController:
 
     def hand_rotation(self) -> Rotation | None:
         """This step's hand rotation from the rotational part, or None (executor's rule)."""
-        return self._rotation
+        return None if self._turn is None else Rotation.from_rotvec(self._turn)
+
+    def hand_turn(self) -> FloatArray | None:
+        """`hand_rotation` as a rotation vector (3,) [rad], or None; the executor composes it
+        with the hand's orientation (`spatial.turned`)."""
+        return self._turn
 
     def stage_inputs(self, constraint_type: str) -> dict[str, tuple[str, ...]]:
         """The force and t^ are projected onto the workplane (needs its normal); on a

@@ -97,8 +97,10 @@ def orientation_error(target: Rotation, matrix: FloatArray) -> FloatArray:
         abs(m00 * m20 + m01 * m21 + m02 * m22),
         abs(m10 * m20 + m11 * m21 + m12 * m22),
     )
-    det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (
-        m10 * m21 - m11 * m20
+    det = (
+        m00 * (m11 * m22 - m12 * m21)
+        - m01 * (m10 * m22 - m12 * m20)
+        + m02 * (m10 * m21 - m11 * m20)
     )
     if not (gram_error <= 1e-13 and det > 0.5):  # scipy decides (and orthonormalizes)
         current = Rotation.from_matrix(np.asarray(m))
