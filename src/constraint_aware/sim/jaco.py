@@ -361,6 +361,8 @@ class JacoSim(Embodiment):
         self._arm_diag_flat = self._arm_dof * (m.nv + 1)  # the arm joints' diagonal of M
         self._control_every = self.osc.control_substeps
         self._phase = 0  # substeps since the last torque update
+        self._osc_data: mujoco.MjData | None = None  # the MjData `_osc_state` views
+        self._osc_state: tuple[FloatArray, ...] = ()
         self._osc_torques, self._osc_index, self._osc_gains, self._osc_joint = self._osc_law()
         self._posture = self._osc_joint[0]  # a view: the law's posture row (`_set_posture`)
 
@@ -412,12 +414,18 @@ class JacoSim(Embodiment):
         """Motor torques for this substep from the OSC law (module docstring; compiled:
         sim/osc.py)."""
         m, d = self.model, self.data
+        if d is not self._osc_data:
+            # the state's arrays are views into this MjData's buffers, fixed for its lifetime:
+            # made once per MjData rather than seven times per call
+            self._osc_data = d
+            self._osc_state = (d.qpos, d.qvel, d.qacc, d.qfrc_bias, d.site_xpos, d.site_xmat)
         mujoco.mj_jacSite(m, d, self._jacp, self._jacr, self._tcp_site)
         mujoco.mj_fullM(m, d, self._full_m)
+        qpos, qvel, qacc, qfrc_bias, site_xpos, site_xmat = self._osc_state
         self._osc_torques(
-            self._jac, self._full_m, d.qpos, d.qvel, d.qacc, d.qfrc_bias, d.site_xpos,
-            d.site_xmat, d.ctrl, self._osc_index, self._sp_pos, self._sp_mat, self._sp_vel,
-            self._osc_joint, self._osc_gains,
+            self._jac, self._full_m, qpos, qvel, qacc, qfrc_bias, site_xpos, site_xmat, d.ctrl,
+            self._osc_index, self._sp_pos, self._sp_mat, self._sp_vel, self._osc_joint,
+            self._osc_gains,
         )  # fmt: skip
 
     def _minv_jt_arm(self, d: mujoco.MjData) -> FloatArray:

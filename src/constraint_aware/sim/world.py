@@ -78,6 +78,13 @@ def build_spec(task: TaskConfig, *, solid_for_arms: bool = False) -> mujoco.MjSp
     return scene_spec(task, attach_hand, solid_for_arms=solid_for_arms)
 
 
+@functools.lru_cache(maxsize=32)
+def _hand_mount(task: TaskConfig) -> Rotation:
+    """The hand's mounting orientation on a task (`TaskConfig.hand_mount`), computed once per
+    task configuration (a Rotation is immutable: runs share it)."""
+    return Rotation.from_matrix(task.hand_mount())
+
+
 def build_mjcf(task: TaskConfig) -> str:
     """The complete MJCF of a task (the composed spec, written out)."""
     return str(build_spec(task).to_xml())
@@ -133,7 +140,7 @@ class ManipulationSim(Embodiment):
         names = [m.geom(i).name for i in range(m.ngeom)]
         hand = {i for i, n in enumerate(names) if n.startswith(h + HAND_GEOM_PREFIX)}
         self._bind_monitor(hand, OBJECT_PREFIX)
-        self._mount = Rotation.from_matrix(task.hand_mount())
+        self._mount = _hand_mount(task)
         self._mount_matrix = self._mount.as_matrix()
         self._tcp_local = np.array([0.0, 0.0, task.hand.tcp_depth])
         self._target = np.zeros(6)
