@@ -5,6 +5,8 @@ force across d, and the controllers' hand turns as rotation vectors."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -14,7 +16,9 @@ from constraint_aware.control.controllers import FixedDirection
 from constraint_aware.control.interface import ControlInput
 from constraint_aware.control.motion import next_target, paper_turn
 from constraint_aware.control.steady import SteadyDirection, across_force
+from constraint_aware.errors import InvalidInputError
 from constraint_aware.geometry import rotate_about, turn_vector
+from constraint_aware.policy import ConstraintAwarePolicy, mirror_average
 from constraint_aware.sim.robot_adapter import orientation_error
 from constraint_aware.spatial import Pose, turned
 
@@ -139,3 +143,12 @@ def test_the_controllers_hand_turn_is_their_hand_rotation() -> None:
             assert turn is not None and rotation is not None
             assert np.allclose(rotation.as_rotvec(), turn, rtol=0, atol=TOL)
     assert ClassicalController().hand_turn() is None
+
+
+def test_mirror_average_still_checks_a_callers_observation() -> None:
+    """The executor's own observations skip the network's input checks; a caller's do not."""
+    policy = ConstraintAwarePolicy.load()
+    obs = np.zeros(len(policy.observation_layout))
+    obs[0], obs[3] = math.nan, 1.0
+    with pytest.raises(InvalidInputError, match="obs"):
+        mirror_average(policy, obs, np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]))

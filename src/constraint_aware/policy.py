@@ -33,7 +33,6 @@ from constraint_aware.geometry import (
     FloatArray,
     all_finite,
     as_vector,
-    cross,
     norm,
     normalize_force,
     update_direction_rule,
@@ -211,7 +210,7 @@ class DirectionUpdater:
         a = (
             p.act_batch(obs[None, :])[0]
             if normal is None or blocked
-            else mirror_average(p, obs, d, normal)
+            else _mirrored_action(p, obs, d, normal)
         )
         return np.asarray(update_direction_rule(d, p.action_scale * a))
 
@@ -232,15 +231,27 @@ def mirror_average(
     every 3-vector of the observation (F/|F|, d and, for history layouts, the previous
     step's); the scalars (|F|/(k delta), the flag) are invariant. obs: (n_in,) the
     observation of `direction` (3,) unit d; normal: (3,) not parallel to d (else the plain
-    action is returned).
+    action is returned). Raises InvalidInputError naming `obs` when it is not a finite
+    observation of the policy's layout.
     """
-    m = cross(normal, direction)
-    size = norm(m)
+    checked = policy.check_observations(np.asarray(obs)[None, :])[0]
+    return _mirrored_action(policy, checked, direction, normal)
+
+
+def _mirrored_action(
+    policy: ConstraintAwarePolicy, obs: FloatArray, direction: FloatArray, normal: FloatArray
+) -> FloatArray:
+    """`mirror_average` of a checked observation `obs` (n_in,) (finite, the policy's layout):
+    the network runs on it and its mirror image without checking them again."""
+    # m = unit(n x d) and M = I - 2 m m^T in Python floats, each product and sum in numpy's
+    # order (geometry.cross, geometry.norm, I - 2.0 * (m m^T)), M built as one array
+    n0, n1, n2 = np.asarray(normal, dtype=float).tolist()
+    d0, d1, d2 = np.asarray(direction, dtype=float).tolist()
+    c0, c1, c2 = n1 * d2 - n2 * d1, n2 * d0 - n0 * d2, n0 * d1 - n1 * d0
+    size = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
     if size < 1e-9:  # d along n: no in-plane side to mirror
         return policy.act_batch(obs[None, :])[0]
-    # M = I - 2 m m^T element by element in Python floats (the floats numpy's I - 2.0 * (m m^T)
-    # gives), built as one array
-    m0, m1, m2 = (m / size).tolist()
+    m0, m1, m2 = c0 / size, c1 / size, c2 / size
     mirror = np.array(
         [
             [1.0 - 2.0 * (m0 * m0), 0.0 - 2.0 * (m0 * m1), 0.0 - 2.0 * (m0 * m2)],
@@ -252,9 +263,7 @@ def mirror_average(
     pair[0] = pair[1] = obs
     for start in policy.vector_blocks:
         pair[1, start : start + 3] = mirror @ obs[start : start + 3]
-    # the observation's vectors are checked and finite, so is its mirror image: the network
-    # directly, without act_batch's checks
-    a, a_mirrored = policy._forward(pair)
+    a, a_mirrored = policy._forward(pair)  # a finite observation has a finite mirror image
     return np.asarray(0.5 * (a + mirror @ a_mirrored))
 
 
