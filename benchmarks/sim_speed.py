@@ -1,7 +1,9 @@
 """Simulation speed per embodiment: MuJoCo's share of a run, real-time factors, env steps/s.
 
     python benchmarks/sim_speed.py [--repeats 5] [--robots hook-hand,jaco]
-        [--parts overhead,realtime,env] [--out benchmarks/results/sim_speed.json]
+        [--parts overhead,realtime,env,build] [--out benchmarks/results/sim_speed.json]
+    python benchmarks/sim_speed.py --trees NAME=SRC,NAME=SRC [--rounds 3] [--repeats 1]
+        [--robots hook-hand,jaco] [--out ...]
 
 Three measurements per embodiment, each a median over `--repeats` in this one run (the
 machine may be shared: compare ratios from one run, never a lone absolute time; the 1-minute
@@ -28,15 +30,33 @@ load average before and after is recorded):
   constructing the embodiment with the compiled-model cache emptied (the model compiled) and
   with it filled (a sweep's runs of the same task configuration), and a new `MjData` on the
   model.
+- `suite` (only when asked for, and by `--trees`): a fixed set of runs, the randomized
+  suite's first `SUITE_SEEDS` seeds per task with controllers policy, classical and
+  projection (bench.sweep.suite_specs) and the paper's conditions with controller "policy",
+  each a whole `control.simulate.run`: the CPU time of this process for the whole set, once
+  cold (this process's first: the models compiled, the Jaco's grasps solved) and then warm
+  (the median over `--repeats`), and each run's outcome, step count, peak and mean |F|.
+
+With `--trees`, the `suite` measurement of several source trees (e.g. a checkout of main and
+this tree's src), each in its own subprocess with `PYTHONPATH` set to the tree, interleaved
+round by round (`--rounds`) so that a shared machine's load falls on every tree alike: per
+tree and embodiment the median over rounds of the cold and warm CPU time, their ratios to the
+first tree's, and whether every run's outcome, step count, peak and mean |F| equal the first
+tree's (the largest difference of the forces).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
+import json
 import math
 import os
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -49,7 +69,7 @@ import constraint_aware  # noqa: F401  (registers the Gymnasium envs)
 import constraint_aware.control.executor as executor_module
 import constraint_aware.control.guards as guards_module
 from constraint_aware.bench.provenance import write_results
-from constraint_aware.bench.sweep import PAPER_OFFSETS
+from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.envs import task_env_id
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -59,7 +79,9 @@ from constraint_aware.sim.tasks import TASKS
 STEPS = 30
 DEFAULT_OUT = Path(__file__).parent / "results" / "sim_speed.json"
 QUASI_STATIC_GUARDS_OFF: dict[str, object] = {"self_check__steps": 0}  # and the arm-force one
-PARTS = ("overhead", "realtime", "env", "build")
+PARTS = ("overhead", "realtime", "env", "build")  # the default; `suite` when asked for
+SUITE_SEEDS = 3
+SUITE_CONTROLLERS = ("policy", "classical", "projection")
 
 
 class MujocoClock:
@@ -279,12 +301,93 @@ def build(robot: str, repeats: int) -> dict[str, Any]:
     }
 
 
+def suite(robot: str, repeats: int) -> dict[str, Any]:
+    """The fixed set of runs (module docstring): CPU time [s] cold and warm, and each run's
+    outcome, step count, peak and mean |F| [N]."""
+    policy = ConstraintAwarePolicy.load()
+    specs = [
+        dataclasses.replace(spec, robot=robot)
+        for spec in suite_specs(SUITE_SEEDS, SUITE_CONTROLLERS)
+    ]
+    specs += [
+        RunSpec(task=task, controller="policy", offset_deg=offset, robot=robot)
+        for task, offsets in PAPER_OFFSETS.items()
+        for offset in offsets
+    ]
+
+    def all_runs() -> tuple[float, dict[str, list[Any]]]:
+        records: dict[str, list[Any]] = {}
+        start = time.process_time()
+        for spec in specs:
+            record, _ = run(spec, policy=policy)
+            forces = [s.force_norm for s in record.steps if math.isfinite(s.force_norm)]
+            key = f"{spec.task} {spec.controller} {spec.offset_deg:+.6f} seed {spec.seed}"
+            records[key] = [
+                record.outcome,
+                len(record.steps),
+                max(forces, default=math.nan),
+                sum(forces) / len(forces) if forces else math.nan,
+            ]
+        return time.process_time() - start, records
+
+    cold, records = all_runs()
+    warm = [all_runs()[0] for _ in range(repeats)]
+    warm_cpu = statistics.median(warm)
+    return {"runs": len(specs), "cold_cpu_s": cold, "warm_cpu_s": warm_cpu, "records": records}
+
+
 MEASURES: dict[str, Callable[[str, int], dict[str, Any]]] = {
     "overhead": overhead,
     "realtime": realtime,
     "env": env_speed,
     "build": build,
+    "suite": suite,
 }
+
+
+def compare_trees(
+    trees: dict[str, str], rounds: int, repeats: int, robots: list[str]
+) -> dict[str, Any]:
+    """The `suite` measurement of each source tree in `trees` (name -> src directory) in a
+    subprocess, interleaved over `rounds` (module docstring)."""
+    results: dict[str, list[dict[str, Any]]] = {name: [] for name in trees}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(rounds):
+            for name, src in trees.items():
+                out = Path(tmp) / f"{name}-{i}.json"
+                command = [sys.executable, __file__, "--parts", "suite", "--repeats", str(repeats)]
+                command += ["--robots", ",".join(robots), "--out", str(out)]
+                env = {**os.environ, "PYTHONPATH": src}
+                subprocess.run(command, env=env, check=True, capture_output=True)
+                results[name].append(json.loads(out.read_text()))
+    first = next(iter(trees))
+    table: dict[str, Any] = {}
+    for robot in robots:
+        base = results[first][0][robot]["suite"]["records"]
+        rows: dict[str, Any] = {}
+        for name, outs in results.items():
+            entries = [o[robot]["suite"] for o in outs]
+            records = [e["records"] for e in entries]
+            force_gap = max(
+                (abs(r[k][i] - base[k][i]) for r in records for k in base for i in (2, 3)),
+                default=0.0,
+            )
+            rows[name] = {
+                "src": trees[name],
+                "cold_cpu_s": statistics.median(e["cold_cpu_s"] for e in entries),
+                "warm_cpu_s": statistics.median(e["warm_cpu_s"] for e in entries),
+                "outcomes_and_steps_equal_to_first": all(
+                    r[k][:2] == base[k][:2] for r in records for k in base
+                ),
+                "records_equal_to_first": all(r == base for r in records),
+                "largest_force_difference_N": force_gap,
+                "load_average_1min": [o["load_average_1min_at_start"] for o in outs],
+            }
+        for row in rows.values():
+            for key in ("cold_cpu_s", "warm_cpu_s"):
+                row[key.replace("_s", "_over_first")] = row[key] / rows[first][key]
+        table[robot] = rows
+    return {"rounds": rounds, "repeats": repeats, "runs": table}
 
 
 def main() -> None:
@@ -293,13 +396,25 @@ def main() -> None:
     parser.add_argument("--robots", default="hook-hand,jaco")
     parser.add_argument("--parts", default=",".join(PARTS))
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    parser.add_argument("--trees", help="NAME=SRC,NAME=SRC: compare source trees (suite)")
+    parser.add_argument("--rounds", type=int, default=3)
     args = parser.parse_args()
     if args.repeats < 1:
         parser.error("--repeats must be >= 1")
     parts = args.parts.split(",")
-    if unknown := set(parts) - set(PARTS):
-        parser.error(f"--parts: unknown {sorted(unknown)}; valid: {', '.join(PARTS)}")
+    if unknown := set(parts) - set(MEASURES):
+        parser.error(f"--parts: unknown {sorted(unknown)}; valid: {', '.join(MEASURES)}")
     robots = args.robots.split(",")
+    if args.trees:
+        if args.rounds < 1:
+            parser.error("--rounds must be >= 1")
+        pairs = [item.partition("=") for item in args.trees.split(",")]
+        if any(not name or not src for name, _, src in pairs):
+            parser.error("--trees: expected NAME=SRC,NAME=SRC")
+        compared = compare_trees({n: s for n, _, s in pairs}, args.rounds, args.repeats, robots)
+        write_results(args.out, compared)
+        print(json.dumps(compared, indent=1))
+        return
     out: dict[str, Any] = {
         "load_average_1min_at_start": os.getloadavg()[0],
         "cpu_count": os.cpu_count(),
