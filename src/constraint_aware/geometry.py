@@ -6,7 +6,11 @@ The executor calls these once or more per control period on single vectors, wher
 per-call overhead (np.cross, np.linalg.norm, np.all(np.isfinite(...))) exceeds the arithmetic
 many times over: single vectors take a path in Python floats with the same operations in the
 same order as numpy's, so both paths give the same floats (`angle_deg`, a reported quantity,
-uses math's atan2 and may differ from the batched path in the last place).
+uses math's atan2 and may differ from the batched path in the last place). Dot products of
+two (3,) vectors are summed x, y, z in turn there and in the executor's other float paths
+(control.motion, control.lag, control.steady, policy.mirror_average), as numpy's dot sums
+three elements with OpenBLAS's x86-64 (Haswell) kernel; a BLAS that fuses the multiply-adds
+may differ from those paths in the last place.
 """
 
 from __future__ import annotations
@@ -140,8 +144,7 @@ def rotate_about(v: FloatArray, axis: FloatArray, angle_rad: FloatArray | float)
         along = a0 * v0 + a1 * v1 + a2 * v2
         c0, c1, c2 = a1 * v2 - a2 * v1, a2 * v0 - a0 * v2, a0 * v1 - a1 * v0  # axis x v
         rest = 1.0 - cos
-        # element by element, in the batched path's order: v cos + (axis x v) sin + axis along
-        # (1 - cos)
+        # each element in the batched path's order: v cos + (axis x v) sin + axis along (1 - cos)
         return np.array(
             [
                 v0 * cos + c0 * sin + a0 * along * rest,
