@@ -8,6 +8,8 @@ and `make_controller`, which builds any of them by name.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -20,7 +22,7 @@ from constraint_aware.control.interface import (
 )
 from constraint_aware.control.steady import STEADY_STAGES, SteadyConfig, SteadyDirection
 from constraint_aware.errors import ConfigError, UnknownNameError
-from constraint_aware.geometry import FloatArray, norm, normalize_force, unit, update_direction_rule
+from constraint_aware.geometry import FloatArray, normalize_force, update_direction_rule
 from constraint_aware.policy import ConstraintAwarePolicy
 
 __all__ = [
@@ -191,5 +193,10 @@ def project_on_plane(direction: FloatArray, normal: FloatArray | None) -> FloatA
     """
     if normal is None:
         return direction
-    p = direction - float(direction @ normal) * normal
-    return unit(p) if norm(p) > 1e-6 else direction
+    # in Python floats (every control period), each product and sum in numpy's order
+    d0, d1, d2 = np.asarray(direction, dtype=float).tolist()
+    n0, n1, n2 = np.asarray(normal, dtype=float).tolist()
+    k = d0 * n0 + d1 * n1 + d2 * n2
+    p0, p1, p2 = d0 - k * n0, d1 - k * n1, d2 - k * n2
+    size = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+    return np.array([p0 / size, p1 / size, p2 / size]) if size > 1e-6 else direction
