@@ -12,7 +12,7 @@ user would make once per robot and grasp. With `--fixture
 ROBOT=TASK`, one calibration of ROBOT holding TASK's object serves every task (a user who
 calibrates once per robot, on an object where every quantity can be measured).
 `--free-space TASK` (default drawer-opening; "none": off): first one free-space calibration
-per robot (control.calibrate.calibrate_free_space, through the same adapter) at TASK's grasp
+per robot (control.free_space.calibrate_free_space, through the same adapter) at TASK's grasp
 posture with the simulator's contacts off (the hand holding nothing), given to every task's
 calibration as `free_space_profile`: its tracking time constant replaces the pushes' estimate,
 and its lag error (from setpoint ramps at the executor's step per period) times the task's
@@ -60,8 +60,9 @@ import numpy as np
 
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import suite_specs
-from constraint_aware.control.calibrate import calibrate, calibrate_free_space
+from constraint_aware.control.calibrate import calibrate
 from constraint_aware.control.executor_config import ExecutorConfig
+from constraint_aware.control.free_space import calibrate_free_space
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.robot import Robot
 from constraint_aware.control.simulate import RunSpec, grasped, run

@@ -1,4 +1,4 @@
-"""The free-space calibration (control.calibrate.calibrate_free_space) and a grasp's calibration
+"""The free-space calibration (control.free_space.calibrate_free_space) and a grasp's calibration
 taking its tracking time constant (`calibrate(..., free_space_profile=...)`)."""
 
 from __future__ import annotations
@@ -14,13 +14,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from constraint_aware.control.calibrate import (
-    FreeSpaceConfig,
-    calibrate,
-    calibrate_free_space,
-    step_rise_time,
-)
+from constraint_aware.control.calibrate import calibrate
+from constraint_aware.control.free_space import FreeSpaceConfig, calibrate_free_space
 from constraint_aware.control.profile import RobotProfile
+from constraint_aware.control.tracking_fit import step_rise_time
 from constraint_aware.errors import ConfigError, InvalidInputError
 from constraint_aware.spatial import Pose, Wrench
 
