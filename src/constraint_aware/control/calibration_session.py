@@ -99,7 +99,9 @@ class SessionLimits(Protocol):
         ...
 
 
+#: A calibration's config (its limits hold the session).
 LimitsT = TypeVar("LimitsT", bound=SessionLimits)
+#: A calibration's session (a calibration may carry its own state on one).
 SessionT = TypeVar("SessionT", bound="CalibrationSession[Any]")
 
 
@@ -180,6 +182,9 @@ class CalibrationSession(Generic[LimitsT]):
         return self.read()
 
     def read(self) -> Reading:
+        """Read the robot without advancing: a CalibrationStop on a non-finite force or pose,
+        on STALE_SAMPLES identical wrench samples in a row, or (after the rest phase) on
+        |F - F_rest| above the force limit; the reading is logged."""
         wrench = self.robot.read_wrench()
         force = np.asarray(wrench.force, dtype=float)
         if force.shape != (3,) or not np.all(np.isfinite(force)):
@@ -233,6 +238,7 @@ class CalibrationSession(Generic[LimitsT]):
 
 
 def _check_pose(pose: Pose, what: str) -> None:
+    """A CalibrationStop ("bad_reading") naming `what` when `pose` is not finite."""
     position = np.asarray(pose.position, dtype=float)
     if not (np.all(np.isfinite(position)) and np.all(np.isfinite(pose.orientation.as_quat()))):
         raise CalibrationStop("bad_reading", f"{what} {pose.position!r} is not finite")
@@ -296,6 +302,7 @@ def _finish(
 
 
 def _mark_unreached(profile: RobotProfile, reason: str) -> None:
+    """Give every quantity still "not reached" the reason the calibration ended first."""
     for name, m in profile.quantities.items():
         if not m.measured and m.reason == "not reached":
             profile.quantities[name] = Measurement.unmeasured(name, reason)
