@@ -159,6 +159,17 @@ def test_free_space_ramps_measure_the_lag_error_at_the_executors_speed(
     assert sum(math.isclose(x, cfg.ramp_step, rel_tol=1e-6) for x in steps) >= 9 * 3
 
 
+def test_every_valid_ramp_travel_runs_and_the_setpoint_stays_within_it() -> None:
+    """The session holds the robot to the free-space config's own travel: a ramp of 8 cm (a
+    valid FreeSpaceConfig) runs to the end, and no setpoint goes further."""
+    arm = ImpedanceArm(k=2000.0, c=40.0, m=1.0)
+    cfg = FreeSpaceConfig(ramp_travel=0.08, max_periods=1200)
+    profile = calibrate_free_space(arm, "arm", cfg)
+    assert profile.outcome == "complete", profile.reason
+    start = arm.commands[0]
+    assert max(float(np.max(np.abs(c - start))) for c in arm.commands) <= 0.08 * (1 + 1e-9)
+
+
 def test_a_contact_during_a_free_space_ramp_stops_it_and_holds() -> None:
     """Something enters the cleared path once the ramps begin (a soft obstacle 25 mm out along
     +y): the ramp stops with 'contact' at contact_force, within the force limit; the start is

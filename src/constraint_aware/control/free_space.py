@@ -20,7 +20,6 @@ from typing import TypeAlias
 
 import numpy as np
 
-from constraint_aware.control.calibrate import CalibrationConfig
 from constraint_aware.control.calibration_session import (
     POOL_RATIO,
     SAFE_SHARE,
@@ -46,8 +45,8 @@ from constraint_aware.spatial import Pose
 
 __all__ = ["HELD_ONLY", "REST_SHARE", "FreeSpaceConfig", "calibrate_free_space"]
 
-#: The session a free-space calibration runs (its limits a CalibrationConfig's).
-_Session: TypeAlias = CalibrationSession[CalibrationConfig]
+#: The session a free-space calibration runs (held to its FreeSpaceConfig's limits).
+_Session: TypeAlias = CalibrationSession["FreeSpaceConfig"]
 
 #: The hand is at rest for a free-space step when it moved less than this share of the step
 #: in a period.
@@ -97,6 +96,12 @@ class FreeSpaceConfig:
     def travel(self) -> float:
         """[m] the furthest the setpoint goes from the start along an axis."""
         return max(self.step, self.ramp_travel)
+
+    @property
+    def travel_limit(self) -> float:
+        """[m] the furthest a setpoint is ever commanded from the start (the session's
+        limit: `travel`)."""
+        return self.travel
 
 
 #: Quantities only a calibration holding an object measures.
@@ -174,21 +179,10 @@ def calibrate_free_space(
         profile.quantities[q] = Measurement.unmeasured(
             q, "a free-space calibration: nothing to push against"
         )
-    # the session's checks and restore with the free-space limits (the push settings unused)
-    session_cfg = CalibrationConfig(
-        rest_periods=cfg.rest_periods,
-        force_limit=cfg.force_limit,
-        contact_force=cfg.contact_force,
-        push_force=0.5 * (cfg.contact_force + cfg.force_limit),
-        travel_limit=cfg.travel,
-        first_push=min(4e-4, cfg.step),
-        free_travel=cfg.step,
-        max_periods=cfg.max_periods,
-    )
     return run_calibration(
         robot,
         profile,
-        lambda start: CalibrationSession(robot, session_cfg, start),
+        lambda start: CalibrationSession(robot, cfg, start),
         lambda session: _run_free_space(session, cfg, profile),
     )
 
