@@ -165,7 +165,7 @@ def test_every_valid_ramp_travel_runs_and_the_setpoint_stays_within_it() -> None
     arm = ImpedanceArm(k=2000.0, c=40.0, m=1.0)
     cfg = FreeSpaceConfig(ramp_travel=0.08, max_periods=1200)
     profile = calibrate_free_space(arm, "arm", cfg)
-    assert profile.outcome == "complete", profile.reason
+    assert profile.outcome == "complete", profile.notes
     start = arm.commands[0]
     assert max(float(np.max(np.abs(c - start))) for c in arm.commands) <= 0.08 * (1 + 1e-9)
 
