@@ -69,12 +69,8 @@ from typing import Any
 import numpy as np
 
 from constraint_aware.bench.provenance import write_results
-from constraint_aware.control.calibrate import (
-    CalibrationConfig,
-    FreeSpaceConfig,
-    calibrate,
-    calibrate_free_space,
-)
+from constraint_aware.control.calibrate import CalibrationConfig, calibrate
+from constraint_aware.control.free_space import FreeSpaceConfig, calibrate_free_space
 from constraint_aware.control.probe import push_directions
 from constraint_aware.control.simulate import RunSpec, grasped
 from constraint_aware.sim.embodiment import VARIANT_RANGES

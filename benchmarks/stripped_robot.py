@@ -12,7 +12,7 @@ user would make once per robot and grasp. With `--fixture
 ROBOT=TASK`, one calibration of ROBOT holding TASK's object serves every task (a user who
 calibrates once per robot, on an object where every quantity can be measured).
 `--free-space TASK` (default drawer-opening; "none": off): first one free-space calibration
-per robot (control.calibrate.calibrate_free_space, through the same adapter) at TASK's grasp
+per robot (control.free_space.calibrate_free_space, through the same adapter) at TASK's grasp
 posture with the simulator's contacts off (the hand holding nothing), given to every task's
 calibration as `free_space_profile`: its tracking time constant replaces the pushes' estimate,
 and its lag error (from setpoint ramps at the executor's step per period) times the task's
@@ -35,7 +35,8 @@ sensor failing after ONSET moves: "noise_at_tare" (fresh Gaussian noise of the s
 sigma around the mean reading over the F_d hold: a dead sensor's tare), "noise_at_last"
 (the same noise around the last reading before the failure: an amplifier stuck at its last
 level), "jitter" (the last reading held with 1e-9 N of
-jitter), "frozen" (the last reading held exactly); with the profile, with and without the
+jitter), "frozen" (the last reading held exactly); the failed sensor's noise drawn from its
+own generator per run (seeded with the run's index); with the profile, with and without the
 robot's translational_stiffness report; and without a profile for contrast. The true force is
 the simulator's noise-free wrench minus its mean over the F_d hold; each run records its peak
 over the run and after the failure. Must-show: no true |F| above the force limit after any
@@ -59,8 +60,9 @@ import numpy as np
 
 from constraint_aware.bench.provenance import write_results
 from constraint_aware.bench.sweep import suite_specs
-from constraint_aware.control.calibrate import calibrate, calibrate_free_space
+from constraint_aware.control.calibrate import calibrate
 from constraint_aware.control.executor_config import ExecutorConfig
+from constraint_aware.control.free_space import calibrate_free_space
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.robot import Robot
 from constraint_aware.control.simulate import RunSpec, grasped, run
@@ -107,7 +109,9 @@ class DeadSensor:
     """The simulated robot with its force sensor failing after ONSET moves (module
     docstring); reports its stiffness only when `report_stiffness`; tracks the true force."""
 
-    def __init__(self, sim: Any, fault: str, report_stiffness: bool, hold_periods: int) -> None:
+    def __init__(
+        self, sim: Any, fault: str, report_stiffness: bool, hold_periods: int, seed: int = 99
+    ) -> None:
         self.sim = sim
         self.fault = fault
         self.report_stiffness = report_stiffness
@@ -118,7 +122,7 @@ class DeadSensor:
         self.true_forces: list[np.ndarray] = []
         self.last: Wrench | None = None
         self.rest: list[Wrench] = []  # the readings over the F_d hold
-        self.rng = np.random.default_rng(99)
+        self.rng = np.random.default_rng(seed)  # the failed sensor's noise
         self.onset: int | None = None  # the period the sensor failed at
 
     def __getattr__(self, name: str) -> Any:
@@ -285,7 +289,9 @@ def dead_sensor(
                                 report: bool = report,
                                 made: list[DeadSensor] = made,
                             ) -> Any:
-                                made.append(DeadSensor(sim, fault, report, hold_periods))
+                                made.append(
+                                    DeadSensor(sim, fault, report, hold_periods, seed=len(runs))
+                                )
                                 return made[-1]
 
                             spec = RunSpec(task=task, robot=robot, offset_deg=offset, seed=0)

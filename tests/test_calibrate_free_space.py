@@ -1,4 +1,4 @@
-"""The free-space calibration (control.calibrate.calibrate_free_space) and a grasp's calibration
+"""The free-space calibration (control.free_space.calibrate_free_space) and a grasp's calibration
 taking its tracking time constant (`calibrate(..., free_space_profile=...)`)."""
 
 from __future__ import annotations
@@ -14,13 +14,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from constraint_aware.control.calibrate import (
-    FreeSpaceConfig,
-    calibrate,
-    calibrate_free_space,
-    step_rise_time,
-)
+from constraint_aware.control.calibrate import calibrate
+from constraint_aware.control.free_space import FreeSpaceConfig, calibrate_free_space
 from constraint_aware.control.profile import RobotProfile
+from constraint_aware.control.tracking_fit import step_rise_time
 from constraint_aware.errors import ConfigError, InvalidInputError
 from constraint_aware.spatial import Pose, Wrench
 
@@ -160,6 +157,17 @@ def test_free_space_ramps_measure_the_lag_error_at_the_executors_speed(
     steps = [float(np.linalg.norm(b - a)) for a, b in itertools.pairwise(arm.commands)]
     assert max(steps) <= cfg.step * (1 + 1e-9)
     assert sum(math.isclose(x, cfg.ramp_step, rel_tol=1e-6) for x in steps) >= 9 * 3
+
+
+def test_every_valid_ramp_travel_runs_and_the_setpoint_stays_within_it() -> None:
+    """The session holds the robot to the free-space config's own travel: a ramp of 8 cm (a
+    valid FreeSpaceConfig) runs to the end, and no setpoint goes further."""
+    arm = ImpedanceArm(k=2000.0, c=40.0, m=1.0)
+    cfg = FreeSpaceConfig(ramp_travel=0.08, max_periods=1200)
+    profile = calibrate_free_space(arm, "arm", cfg)
+    assert profile.outcome == "complete", profile.notes
+    start = arm.commands[0]
+    assert max(float(np.max(np.abs(c - start))) for c in arm.commands) <= 0.08 * (1 + 1e-9)
 
 
 def test_a_contact_during_a_free_space_ramp_stops_it_and_holds() -> None:

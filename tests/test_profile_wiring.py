@@ -35,7 +35,12 @@ from constraint_aware.control.profile import (
     RobotProfile,
 )
 from constraint_aware.control.run_inputs import MissingInputError
-from constraint_aware.control.sensor_health import DEAD_PERIODS, STALE_FRACTION
+from constraint_aware.control.sensor_health import (
+    DEAD_PERIODS,
+    QUIET_SIGMAS,
+    QUIET_WINDOW,
+    STALE_FRACTION,
+)
 from constraint_aware.geometry import rotate_about
 from constraint_aware.spatial import Pose, Wrench
 
@@ -263,9 +268,10 @@ def test_the_calibrated_deflection_error_catches_a_dead_sensor_below_the_arm_for
     """Pushing along the guide (250 N/m) the force grows slowly: the arm-force check's
     allowance (0.75 step forces, 15 N here) hides it for many steps. The profile's measured
     deflection error (a + b |v|) bounds the model far tighter, so the dead sensor is seen
-    within a few newtons."""
+    within a few newtons. (The reference run's profile has no noise sigma, so that the
+    quiet-sensor test, which would also see this sensor, stays off.)"""
     without = Guide("dead")
-    late = Executor(without, FixedDirection(), GOAL, profile=profile()).run(d0(0))
+    late = Executor(without, FixedDirection(), GOAL, profile=profile(force_noise=None)).run(d0(0))
     robot = Guide("dead")
     model = profile(deflection_error=0.3, deflection_error_per_speed=5.0)
     rec = Executor(robot, FixedDirection(), GOAL, profile=model).run(d0(0))
@@ -274,6 +280,57 @@ def test_the_calibrated_deflection_error_catches_a_dead_sensor_below_the_arm_for
     # the sensor fails after 4 moves: seen DEAD_PERIODS moves later, at half the force or less
     assert rec.n_steps <= 4 + DEAD_PERIODS + 1 < late.n_steps
     assert robot.peak_true_force < 0.5 * without.peak_true_force and robot.holds == 1
+
+
+class LightDrag(Guide):
+    """The guide without its spring: the object slides once pushed with more than
+    `resistance` [N] (dry friction), far below the dead band and any deflection model's error
+    (the arm deflects by resistance / K, 0.15 mm at 0.3 N)."""
+
+    def __init__(self, sensor: str = "ok", seed: int = 0, resistance: float = 0.3) -> None:
+        super().__init__(sensor, seed)
+        self.resistance = resistance
+
+    def true_force(self) -> np.ndarray:
+        return K * (self.s * U - self.target.position)
+
+    def advance(self) -> None:
+        ahead = float(self.target.position @ U) - self.resistance / K
+        self.s = max(self.s, ahead)
+        self.periods += 1
+        self.peak_true_force = max(self.peak_true_force, float(np.linalg.norm(self.true_force())))
+
+
+def test_a_dead_sensor_on_an_object_resisting_below_the_dead_band_stops_sensor_dead() -> None:
+    """Dragging a 0.3 N object along its guide: the deflection implies less than any model's
+    error, but a live sensor's mean reading stands clear of the noise; a dead one's does not.
+    Without a calibrated sigma there is no noise to compare with, and the run ends success."""
+    live = Executor(LightDrag(), FixedDirection(), GOAL, profile=profile()).run(d0(0))
+    assert live.outcome == "success", live.reason
+    robot = LightDrag("dead")
+    rec = Executor(robot, FixedDirection(), GOAL, profile=profile()).run(d0(0))
+    assert rec.outcome == "sensor_dead" and "reads only noise" in rec.reason, rec.reason
+    assert not rec.success and robot.holds == 1
+    # caught within a few windows of QUIET_WINDOW moves after the failure (4 moves in)
+    assert rec.n_steps <= 4 + 4 * QUIET_WINDOW
+    unseen = Executor(LightDrag("dead"), FixedDirection(), GOAL, profile=profile(force_noise=None))
+    assert unseen.run(d0(0)).outcome == "success"
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_a_live_sensor_on_a_light_object_is_not_judged_quiet(seed: int) -> None:
+    """A 0.3 N resistance at sigma = 0.1 N, along the guide and across it: no false stop."""
+    for offset in (0.0, 25.0):
+        rec = Executor(LightDrag(seed=seed), FixedDirection(), GOAL, profile=profile()).run(
+            d0(offset)
+        )
+        assert rec.outcome != "sensor_dead", rec.reason
+
+
+def test_quiet_sigmas_is_the_median_of_the_chi_distribution_with_three_dof() -> None:
+    from scipy.stats import chi
+
+    assert pytest.approx(chi.median(3), abs=1e-3) == QUIET_SIGMAS
 
 
 def test_without_any_stiffness_a_dead_sensor_goes_unseen() -> None:

@@ -39,6 +39,47 @@ def test_inverse_kinematics_keeps_the_asked_joint_limit_margin() -> None:
         planner.solve_ik(grasp, q, handle=False, clearance=0.0, margin=3.0)  # no joint has it
 
 
+def test_the_reach_targets_the_grasp_posture_that_follows_the_whole_motion() -> None:
+    # a door (0.68 m) from the station its sequence stands at: the grasp posture farthest
+    # from the joint limits at the grasp comes within 0.14 rad of a limit as the door opens,
+    # inside the controller's repulsion band (the arm stops `not_following` there); the
+    # posture motion_ik picks keeps the band's width and more over the whole motion, without
+    # changing its arm configuration, and the pre-grasp lies on that configuration
+    from constraint_aware.sim.jaco import JacoSim, OscConfig
+    from constraint_aware.sim.reach import (
+        BRANCH_JUMP,
+        JACO_PRESHAPE,
+        MOTION_PIECES,
+        JacoPlanner,
+        _wrapped,
+        motion_poses,
+    )
+
+    place, _ = _placed("door", 6)
+    task = place.task
+    sim = JacoSim(task, base=np.array([0.785, -0.278, 0.782]))
+    grasp = sim.grasp_pose()
+    planner = JacoPlanner(sim.base)
+    planner.fingers = JACO_PRESHAPE[task.object.handle]
+    planner.set_object(task)
+    fractions = tuple(i / MOTION_PIECES for i in range(MOTION_PIECES + 1))
+    poses = motion_poses(task, grasp, fractions)
+    band = OscConfig().limit_margin
+    roomiest = planner._follow(planner.roomiest_ik(grasp), poses, fractions, task, 0.0, False)
+    assert roomiest is not None and roomiest < band
+    q, least = planner.motion_ik(grasp, clear=False)
+    assert least > 2 * band
+    for pose in poses:  # followed piece by piece: no joint jumps
+        nxt = planner._ik_from(q, pose)
+        assert nxt is not None and float(np.max(np.abs(_wrapped(nxt - q)))) <= BRANCH_JUMP
+        assert planner.limit_margin(nxt) >= least - 1e-9
+        q = nxt
+    start, _ = planner.motion_ik(grasp, clear=False)
+    pre = grasp.moved(-0.1 * grasp.orientation.apply([0.0, 0.0, 1.0]))
+    q_pre = planner.pre_grasp_ik(pre, start)
+    assert float(np.max(np.abs(_wrapped(q_pre - start)))) <= BRANCH_JUMP
+
+
 def test_the_base_moves_when_the_perceived_grasp_is_out_of_reach() -> None:
     # a window demonstrated 4 cm off its bar: from the station the demonstration implies, the
     # true grasp lies beyond the arm's reach (the approach stopped 12 mm short, a shoulder

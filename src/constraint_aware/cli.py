@@ -1215,7 +1215,8 @@ _FREE_SPACE_SHARED = (
 
 
 def _calibrate_parser(p: argparse.ArgumentParser) -> None:
-    from constraint_aware.control.calibrate import CalibrationConfig, FreeSpaceConfig
+    from constraint_aware.control.calibrate import CalibrationConfig
+    from constraint_aware.control.free_space import FreeSpaceConfig
 
     p.add_argument("task", choices=_task_names(), help="the simulated task whose handle is held")
     _add_robot(p, "to calibrate")
@@ -1250,12 +1251,8 @@ def _calibrate_parser(p: argparse.ArgumentParser) -> None:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from constraint_aware.control.calibrate import (
-        CalibrationConfig,
-        FreeSpaceConfig,
-        calibrate,
-        calibrate_free_space,
-    )
+    from constraint_aware.control.calibrate import CalibrationConfig, calibrate
+    from constraint_aware.control.free_space import FreeSpaceConfig, calibrate_free_space
     from constraint_aware.control.profile import QUANTITIES
     from constraint_aware.control.simulate import RunSpec, grasped
 

@@ -4,12 +4,7 @@ The simulated run (`constraint_aware.control.simulate`) is imported from its mod
 brings in the simulator.
 """
 
-from constraint_aware.control.calibrate import (
-    CalibrationConfig,
-    FreeSpaceConfig,
-    calibrate,
-    calibrate_free_space,
-)
+from constraint_aware.control.calibrate import CalibrationConfig, calibrate
 from constraint_aware.control.controllers import (
     CONTROLLERS,
     POLICY_CONTROLLERS,
@@ -29,6 +24,7 @@ from constraint_aware.control.executor_config import (
     TorquePolicyConfig,
     max_grasp_play,
 )
+from constraint_aware.control.free_space import FreeSpaceConfig, calibrate_free_space
 from constraint_aware.control.probe import (
     PROBE_VERDICTS,
     ProbeConfig,

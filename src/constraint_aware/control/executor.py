@@ -249,6 +249,8 @@ class Executor:
             )
         ):
             return self._finish(st.record, "sensor_convention", why)
+        if stop := st.health.check_quiet(force, travel, cfg.step_length):
+            return self._end(st, stop)
         if pose_ok and (reached := goal_reached(st, cfg.goal, pose)):
             return self._finish(st.record, "success", reached)
         if self.monitor is not None and self.monitor.succeeded():

@@ -33,8 +33,8 @@ OUTCOME_MEANINGS: dict[str, str] = {
     "e-stopped or its setpoint clamped; or a sensor reading low)",
     "stale_wrench": "the same wrench sample was read guards.stale_steps times in a row",
     "sensor_dead": "the force reading stayed within the dead band while the moving hand's "
-    "deflection implied a larger force, or it froze (its spread far below the sensor's noise "
-    "sigma; control.sensor_health)",
+    "deflection implied a larger force, read only noise around zero while the hand moved, or "
+    "froze (its spread far below the sensor's noise sigma; control.sensor_health)",
     "sensor_noise": "the F_d samples were so noisy that the derived dead band reached the "
     "force limit",
     "sensor_convention": "the first moves contradict the wrench convention (flipped sign or "

@@ -1,6 +1,7 @@
 """A dead or frozen force sensor, judged from what calibration knows about the robot.
 
-Two ways a wrist sensor fails without returning a non-finite number or repeating one sample:
+Two ways a wrist sensor fails without returning a non-finite number or repeating one sample,
+dying (the first three tests) and freezing (the last):
 
 - it dies but its electronics keep producing fresh noise around the tare: every reading is
   new and plausible, and reads "no force" while the hand pushes an object. A compliant arm
@@ -8,7 +9,7 @@ Two ways a wrist sensor fails without returning a non-finite number or repeating
   the arm's stiffness is a force the wrench must show (control.guards.arm_force). When the
   reading stays within the dead band while the hand is measured moving and the deflection
   implies more force than the arm-force check allows, the stop is `sensor_dead` (a hand that
-  does not move is an arm not following its target: `not_following`, as before). This needs
+  does not move is an arm not following its target: `not_following`). This needs
   the stiffness: the robot's report, the configuration's, or a robot profile's
   (control.calibrate), so a robot reporting none is covered once it has been calibrated;
 - the same dead sensor where the deflection implies less than the arm-force check's
@@ -22,6 +23,15 @@ Two ways a wrist sensor fails without returning a non-finite number or repeating
   stiffness and tau (the ones its error was measured with), whatever the run's step force
   comes from; it is off without them, and while the hand accelerates (where tau v is not
   the lag);
+- the same dead sensor where the object resists too little for any deflection model to show
+  (a light drawer dragged at a fraction of a newton, below the dead band): a live sensor on a
+  hand that moves an object reads the object's resistance, however small, in the same
+  direction period after period, so the mean reading over `QUIET_WINDOW` moving periods
+  stands clear of zero; a dead one's readings are the calibrated noise around zero. A mean
+  below `QUIET_SIGMAS` sigma / sqrt(QUIET_WINDOW) (what the noise alone stays below in half of
+  all windows: a dead sensor is caught within a few windows, a live one only when the
+  object resists with less than that, 0.07 N at sigma = 0.1 N) stops `sensor_dead`. Needs the
+  calibrated sigma (robot profile), like the frozen test;
 - it freezes with a jitter far below its noise (a driver that re-sends a held value with
   rounding, or a filter stuck at its state): the readings are not identical, so the stale
   guard's exact-repeat test passes, but their spread over `STALE_WINDOW` periods is below
@@ -39,6 +49,7 @@ docs/design/calibration.md.
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -61,6 +72,12 @@ MOVING_FRACTION = 0.25
 #: speed over the last period (the lag model tau v describes a steady follower, not one
 #: accelerating after a jump of its setpoint).
 STEADY_SHARE = 0.25
+#: [control periods] moving periods the quiet-sensor test averages (the frozen test's window).
+QUIET_WINDOW = STALE_WINDOW
+#: The quiet-sensor test's floor in units of sigma / sqrt(QUIET_WINDOW): the median of the chi
+#: distribution with 3 degrees of freedom, sqrt(2.366), which the norm of the mean of
+#: QUIET_WINDOW zero-mean Gaussian 3-vectors of sigma per axis falls below half the time.
+QUIET_SIGMAS = 1.538
 #: Periods in a row the implied force must exceed the reading by more than the measured error
 #: before the sensor is judged dead (a single reading is one noise draw).
 DEAD_PERIODS = 2
@@ -110,6 +127,8 @@ class SensorHealth:
     window: deque[FloatArray] = field(default_factory=lambda: deque(maxlen=STALE_WINDOW))
     previous_velocity: FloatArray = field(default_factory=lambda: np.zeros(3))
     short: int = 0  # periods in a row the reading fell short of the implied force
+    # F - F_d (3,) [N] of the last moving periods in a row, for the quiet-sensor test
+    moving_forces: deque[FloatArray] = field(default_factory=lambda: deque(maxlen=QUIET_WINDOW))
 
     @classmethod
     def for_run(
@@ -164,6 +183,36 @@ class SensorHealth:
             f"{dead_band:.2g} N) while the hand moves steadily ({norm(velocity) * 1000:.0f} "
             f"mm/s) and its deflection implies {implied:.1f} N, more than the calibrated "
             f"model's error {bound:.2f} N above the reading, {self.short} periods in a row",
+        )
+
+    def check_quiet(
+        self, force: FloatArray, hand_travel: float | None, step_length: float
+    ) -> Stop | None:
+        """The quiet-sensor test (module docstring), once per period.
+
+        Args:
+            force: (3,) [N] the reading less F_d, F = F_s - F_d.
+            hand_travel: [m] the hand's travel over the last period (None before moving).
+            step_length: [m] the run's step.
+        """
+        if self.noise is None or hand_travel is None:
+            return None
+        if hand_travel < MOVING_FRACTION * step_length:
+            self.moving_forces.clear()  # the window holds moving periods in a row only
+            return None
+        self.moving_forces.append(np.array(force, dtype=float))
+        if len(self.moving_forces) < QUIET_WINDOW:
+            return None
+        mean = norm(np.mean(self.moving_forces, axis=0))
+        floor = QUIET_SIGMAS * self.noise / math.sqrt(QUIET_WINDOW)
+        if mean >= floor:
+            return None
+        return Stop(
+            "sensor_dead",
+            f"the sensor reads only noise while the hand moves: the mean of F over the last "
+            f"{QUIET_WINDOW} moving periods is {mean:.3f} N, below {floor:.3f} N "
+            f"({QUIET_SIGMAS:g} x the calibrated noise sigma {self.noise:.3g} N / "
+            f"sqrt({QUIET_WINDOW})); a live sensor reads the moved object's resistance",
         )
 
     def offset_sampled(self, forces: FloatArray) -> Stop | None:

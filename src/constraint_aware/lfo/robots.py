@@ -252,13 +252,22 @@ class JacoRobot(SequenceRobot):
 
     def path_to(self, goal: Pose, config: MoveConfig, then: Pose | None = None) -> list[Waypoint]:
         """A joint path to `goal`; with `then` (the grasp after a pre-grasp), to the solution
-        for `goal` nearest the arm's roomiest posture at `then` (farthest from the joint
-        limits, as a placed grasp has it: the manipulation starts from there)."""
+        for `goal` on the arm configuration of the posture at `then` from which the arm
+        follows the believed object's whole motion farthest from the joint limits
+        (`JacoPlanner.motion_ik`, `pre_grasp_ik`): the manipulation starts from there, and the
+        arm cannot change configuration while it holds the handle. The station checked the
+        motion's clearance; here a grasp perceived to some millimetres may graze the believed
+        furniture at the start, so only the joint limits count. Where no posture follows the
+        motion, the solution nearest the roomiest posture at `then`."""
         start = self._jaco.joint_positions()
         speed, turn, period = config.speed, config.turn_rate, self.control_period
         if then is not None:
             try:
-                target = self.planner.solve_ik(goal, self.planner.roomiest_ik(then))
+                try:
+                    at_grasp, _ = self.planner.motion_ik(then, clear=False)
+                    target = self.planner.pre_grasp_ik(goal, at_grasp)
+                except PlanningError:
+                    target = self.planner.solve_ik(goal, self.planner.roomiest_ik(then))
                 return _waypoints(self.planner.plan(start, target, speed, turn, period))
             except PlanningError:
                 pass  # the nearest solution instead

@@ -82,6 +82,14 @@ def segment_distance(points: FloatArray, ends: FloatArray) -> float:
     return float(np.min(np.linalg.norm(points - (a + t[:, None] * ab), axis=1)))
 
 
+#: Pieces `JacoPlanner.motion_ik` follows the object's motion in.
+MOTION_PIECES = 10
+#: [rad] the most a joint may move over one piece of the motion: more is a change of the
+#: arm's inverse-kinematics branch (a tenth of a door's swing turns the joints by at most
+#: about half a radian), which the arm cannot make while it holds the handle.
+BRANCH_JUMP = 1.0
+
+
 class PlanningError(CapError):
     """No collision-free joint path to the goal was found."""
 
@@ -287,6 +295,85 @@ class JacoPlanner:
         if best is None:
             raise PlanningError("no collision-free joint angles reach the grasp")
         return best
+
+    def motion_ik(
+        self, grasp: Pose, margin: float = 0.0, clear: bool = True
+    ) -> tuple[FloatArray, float]:
+        """The grasp's joint solution (6,) [rad] from which the arm follows the believed
+        object's motion (`set_object`'s task, from its joint at 0 to its success progress,
+        `motion_poses`) without leaving its inverse-kinematics branch, and the least
+        joint-limit margin [rad] over that motion; of several, the one with the largest
+        margin. The motion is followed in `MOTION_PIECES` pieces, each solved from the last
+        (the arm moves continuously: it cannot change branch mid-motion); a piece whose
+        solution jumps by more than `BRANCH_JUMP` in any joint, fails, comes within `margin`
+        [rad] of a joint limit or, when `clear`, puts the arm into the furniture ends that
+        candidate. PlanningError when no candidate follows the whole motion."""
+        task = self._task
+        if task is None:
+            raise CapError("JacoPlanner: set_object() first")
+        joint = self._joint
+        fractions = tuple(i / MOTION_PIECES for i in range(MOTION_PIECES + 1))
+        poses = motion_poses(task, grasp, fractions)
+        best, best_margin = None, -math.inf
+        tried: list[FloatArray] = []
+        try:
+            for seed in self._seeds(grasp, self._seeds(grasp, np.zeros(6))[1])[1:]:
+                q0 = self._ik_from(seed, grasp)
+                if q0 is None or any(np.max(np.abs(_wrapped(q0 - t))) < 0.2 for t in tried):
+                    continue
+                tried.append(q0)
+                least = self._follow(q0, poses, fractions, task, margin, clear)
+                if least is not None and least > best_margin:
+                    best, best_margin = q0, least
+        finally:
+            self.set_object(task, joint)
+        if best is None:
+            raise PlanningError(
+                f"no grasp posture follows the {task.name}'s motion {margin:g} rad inside the "
+                "joint limits without changing its arm configuration"
+            )
+        return best, best_margin
+
+    def pre_grasp_ik(self, pre: Pose, at_grasp: FloatArray, margin: float = 0.0) -> FloatArray:
+        """(6,) [rad] the pre-grasp posture on the branch of `at_grasp` (6,) [rad]: solved from
+        it (the approach is a short straight line the arm follows continuously), within
+        `BRANCH_JUMP` of it in every joint, the planner's clearance from the believed object
+        and `margin` [rad] from the joint limits; PlanningError otherwise."""
+        q = self._ik_from(at_grasp, pre)
+        if q is None or float(np.max(np.abs(_wrapped(q - at_grasp)))) > BRANCH_JUMP:
+            raise PlanningError("the pre-grasp is not on the grasp posture's arm configuration")
+        if self.limit_margin(q) < margin or self.clearance(q) < self.config.clearance:
+            raise PlanningError(
+                "the pre-grasp on the grasp posture's arm configuration is too near a joint "
+                "limit or the object"
+            )
+        return q
+
+    def _follow(
+        self,
+        q: FloatArray,
+        poses: list[Pose],
+        fractions: tuple[float, ...],
+        task: TaskConfig,
+        margin: float,
+        clear: bool,
+    ) -> float | None:
+        """The least joint-limit margin [rad] of the arm following `poses` from `q` (the
+        first pose's solution), or None where `motion_ik`'s conditions fail."""
+        least = math.inf
+        for f, pose in zip(fractions, poses, strict=True):
+            nxt = self._ik_from(q, pose)
+            if nxt is None or float(np.max(np.abs(_wrapped(nxt - q)))) > BRANCH_JUMP:
+                return None
+            q = nxt
+            least = min(least, self.limit_margin(q))
+            if least < margin:
+                return None
+            if clear:
+                self.set_object(task, f * task.success_progress)
+                if self.clearance(q, handle=False) < 0.0:
+                    return None
+        return least
 
     def ik_solutions(self, pose: Pose, near: FloatArray) -> list[FloatArray]:
         """Up to three collision-free joint solutions for `pose`, nearest to `near` first."""
