@@ -88,7 +88,10 @@ class DirectionController(Protocol):
 
     def hand_rotation(self) -> Rotation | None:
         """This step's hand rotation if the controller decides it; None: the executor's rule
-        (paper 3.4.1 on revolute constraints, or the torque policy)."""
+        (paper 3.4.1 on revolute constraints, or the torque policy). A controller may also
+        have an optional `hand_turn() -> FloatArray | None`, the same turn as a (3,) rotation
+        vector [rad] in the world frame, which the executor asks first (it composes the turn
+        without building a scipy Rotation: the cheaper path each control period)."""
         ...
 
 
