@@ -87,7 +87,8 @@ def act_latency_us(repeats: int, calls: int = 2000) -> dict[str, float]:
     try:
         import torch
 
-        from constraint_aware.training.ppo import build_model, make_config
+        from constraint_aware.training.ppo import build_model
+        from constraint_aware.training.train_config import make_config
         from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
     except ImportError:
         return out

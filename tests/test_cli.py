@@ -60,7 +60,7 @@ def test_run_help_shows_defaults_and_choices() -> None:
 def test_train_flags_reach_every_training_and_environment_field() -> None:
     pytest.importorskip("stable_baselines3")
     from constraint_aware.training.config import EnvConfig
-    from constraint_aware.training.ppo import TrainConfig
+    from constraint_aware.training.train_config import TrainConfig
 
     options = options_of("train")
     for f in dataclasses.fields(TrainConfig):
@@ -262,6 +262,31 @@ def test_train_unknown_preset() -> None:
     out = cap("train", "--preset", "nope", "--quiet")
     assert out.returncode == 2
     assert "'fast', 'paper'" in out.stderr
+
+
+def test_train_refuses_bad_arguments_without_importing_torch() -> None:
+    """`cap train`'s flags come from the torch-free training.train_config: a bad preset is
+    refused before torch is imported (seconds), and without the extra installed any
+    arguments say which extra to install."""
+    probe = (
+        "import sys\n"
+        "from constraint_aware.cli import main\n"
+        "code = main(['train', '--preset', 'nope', '--quiet'])\n"
+        "assert 'torch' not in sys.modules, 'torch imported'\n"
+        "sys.exit(code)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert out.returncode == 2 and "'fast', 'paper'" in out.stderr, out.stderr
+    blocked = (
+        "import sys\n"
+        "sys.modules['torch'] = None\n"
+        "sys.modules['stable_baselines3'] = None\n"
+        "from constraint_aware.cli import main\n"
+        "sys.exit(main(['train', '--steps', '10']))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", blocked], capture_output=True, text=True)
+    assert out.returncode == 2
+    assert "pip install 'constraint-aware[train]'" in out.stderr, out.stderr
 
 
 def test_train_invalid_environment_range_names_the_field() -> None:

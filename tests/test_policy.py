@@ -310,7 +310,8 @@ def test_matches_stable_baselines3_deterministic_action(tmp_path: Path) -> None:
     pytest.importorskip("stable_baselines3")
     import gymnasium as gym
 
-    from constraint_aware.training.ppo import build_model, export_policy, make_config
+    from constraint_aware.training.ppo import build_model, export_policy
+    from constraint_aware.training.train_config import make_config
     from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
 
     config = make_config("fast", n_envs=8, batch_size=40, seed=3)

@@ -11,7 +11,8 @@ import pytest
 pytest.importorskip("stable_baselines3")
 
 from constraint_aware.errors import InvalidInputError, PolicyFileError
-from constraint_aware.training.ppo import CHECKPOINT, TrainConfig, make_config, train
+from constraint_aware.training.ppo import CHECKPOINT, train
+from constraint_aware.training.train_config import TrainConfig, make_config
 
 EPISODES = 50  # evaluation episodes: enough to compare two evaluations of the same weights
 

@@ -15,7 +15,8 @@ from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.training.batch import SingleSystemBatch
 from constraint_aware.training.config import EnvConfig, resistance_config
 from constraint_aware.training.curve import read_log
-from constraint_aware.training.ppo import make_config, train
+from constraint_aware.training.ppo import train
+from constraint_aware.training.train_config import make_config
 
 # Every training here runs on one torch thread: the suite runs one test per core, and a second
 # torch thread on a busy core waits at every operation's barrier (several times slower).

@@ -6,7 +6,7 @@
     nice -n 10 python benchmarks/studies/default_policy.py closed-loop [--compare LABEL=PATH ...]
     nice -n 10 python benchmarks/studies/default_policy.py forces [--compare LABEL=PATH ...]
 
-`train` runs the `default` preset (training.ppo.PRESETS) into runs/default-seedN/.
+`train` runs the `default` preset (training.train_config.PRESETS) into runs/default-seedN/.
 `ship` measures that run's policy with training.study.analytic_study (standard evaluation,
 evaluation with resistance, pure-resistance probe) and over wrist-stiffness bands, writes
 data/default.npz + .json (the training card plus those measurements, the observation study
@@ -103,7 +103,8 @@ def relabel_study(old: dict[str, Any], study: dict[str, Any]) -> dict[str, Any]:
 
 
 def train_run(seed: int, threads: int) -> None:
-    from constraint_aware.training.ppo import make_config, train
+    from constraint_aware.training.ppo import train
+    from constraint_aware.training.train_config import make_config
 
     config = make_config("default", seed=seed, torch_threads=threads)
     result = train(config, Path(f"runs/default-seed{seed}"))

@@ -27,7 +27,8 @@ OUT = Path(__file__).parent / "results" / "observation_study.json"
 
 
 def train_all(observations: list[str], steps: int, seed: int, threads: int, tag: str = "") -> None:
-    from constraint_aware.training.ppo import make_config, train
+    from constraint_aware.training.ppo import train
+    from constraint_aware.training.train_config import make_config
 
     for obs in observations:
         env = resistance_config(obs)  # magnitude: with STEP_FORCE_UNKNOWN_SHARE

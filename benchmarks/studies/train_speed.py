@@ -27,22 +27,22 @@ from typing import Any
 import torch
 
 from constraint_aware.bench.provenance import write_results
-from constraint_aware.training import ppo
+from constraint_aware.training import ppo, train_config
 from constraint_aware.training.config import resistance_config
 from constraint_aware.training.vec_env import BatchedSingleSystemVecEnv
 
 OUT = Path(__file__).parent / "results" / "train_speed.json"
 
 
-def baseline() -> ppo.TrainConfig:
+def baseline() -> train_config.TrainConfig:
     """The `default` preset before its smaller net (the values of train_time.BASELINE_FLAGS)."""
-    return ppo.make_config(
+    return train_config.make_config(
         "default",
         net_arch=(256, 256),
         n_epochs=10,
         final_learning_rate=None,
         total_timesteps=1_200_000,
-        env=resistance_config(ppo.DEFAULT_OBSERVATION),
+        env=resistance_config(train_config.DEFAULT_OBSERVATION),
     )
 
 
@@ -57,7 +57,7 @@ def timed(store: dict[str, float], key: str, fn: Callable[..., Any]) -> Callable
     return wrapper
 
 
-def profile(config: ppo.TrainConfig, steps: int) -> dict[str, Any]:
+def profile(config: train_config.TrainConfig, steps: int) -> dict[str, Any]:
     """Train `config` for `steps` env steps; seconds in rollouts, updates and evaluations."""
     config = dataclasses.replace(config, total_timesteps=steps, target_angle_deg=None)
     torch.set_num_threads(config.torch_threads)
@@ -93,7 +93,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--out", type=Path, default=OUT)
     args = parser.parse_args()
-    configs = {"baseline": baseline(), "default": ppo.make_config("default")}
+    configs = {"baseline": baseline(), "default": train_config.make_config("default")}
     load_before = os.getloadavg()
     runs = []
     for threads in args.threads:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib
+import importlib.util
 import json
 import math
 import os
@@ -132,6 +133,14 @@ def check_output(
         raise InvalidInputError(f"{flag} {path!r}: {parent} is not a directory")
 
 
+def _installed(module: str) -> bool:
+    """Whether `module` can be imported, looked up without importing it."""
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):  # blocked in sys.modules (None), or a broken parent
+        return False
+
+
 def require_extra(module: str, extra: str, what: str) -> None:
     """Fail before any work when an optional extra's package is missing."""
     try:
@@ -216,20 +225,18 @@ _TRAIN_ALIASES = {
 
 
 def _train_parser(p: argparse.ArgumentParser) -> None:
-    try:
-        from constraint_aware.training import ppo
-    except ImportError as exc:  # torch / SB3 are an extra: say so for any arguments
-        message = f"training needs the 'train' extra: pip install 'constraint-aware[train]' ({exc})"
-
-        def missing(_args: argparse.Namespace) -> int:
-            raise CapError(message)
-
-        p.add_argument("rest", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
-        p.set_defaults(func=missing)
-        return
+    # torch / SB3 are an extra: looked up, not imported (the arguments are parsed and checked
+    # without the seconds torch takes to import)
+    absent = [name for name in ("torch", "stable_baselines3") if not _installed(name)]
+    if absent:  # before any argument is parsed: `cap train --steps 10` says it too
+        raise CapError(
+            "training needs the 'train' extra: pip install 'constraint-aware[train]' "
+            f"({', '.join(absent)} not installed)"
+        )
+    from constraint_aware.training import train_config
     from constraint_aware.training.config import EnvConfig
 
-    presets = ppo.PRESETS
+    presets = train_config.PRESETS
     train = p.add_argument_group("training (TrainConfig; defaults per --preset)")
     train.add_argument("--preset", default="fast", choices=sorted(presets), help="base config")
 
@@ -239,14 +246,14 @@ def _train_parser(p: argparse.ArgumentParser) -> None:
             return _shown(next(iter(values.values())))
         return ", ".join(f"{k}: {_shown(v)}" for k, v in values.items())
 
-    train_fields = [f.name for f in dataclasses.fields(ppo.TrainConfig) if f.name != "env"]
+    train_fields = [f.name for f in dataclasses.fields(train_config.TrainConfig) if f.name != "env"]
     specs = add_dataclass_flags(
         train,
-        ppo.TrainConfig,
+        train_config.TrainConfig,
         skip=("preset", "env"),
         defaults={name: per_preset(name) for name in train_fields},
         aliases=_TRAIN_ALIASES,
-        choices={"target_evaluation": ppo.TARGET_EVALUATIONS},
+        choices={"target_evaluation": train_config.TARGET_EVALUATIONS},
     )
     env = p.add_argument_group("training environment (EnvConfig)")
     env_specs = add_dataclass_flags(env, EnvConfig, prefix="env.")
@@ -269,11 +276,12 @@ def cmd_train(args: argparse.Namespace) -> int:
     from constraint_aware.policy import shipped_policy_path
     from constraint_aware.training import ppo
     from constraint_aware.training.curve import plot_learning_curve
+    from constraint_aware.training.train_config import make_config
 
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
     train_specs: list[FlagSpec] = args.train_specs
     env_specs: list[FlagSpec] = args.env_specs
-    config = ppo.make_config(args.preset, **collect(args, train_specs))
+    config = make_config(args.preset, **collect(args, train_specs))
     env_overrides = collect(args, env_specs)
     if env_overrides:
         config = dataclasses.replace(config, env=dataclasses.replace(config.env, **env_overrides))
