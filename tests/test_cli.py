@@ -265,18 +265,22 @@ def test_train_unknown_preset() -> None:
 
 
 def test_train_refuses_bad_arguments_without_importing_torch() -> None:
-    """`cap train`'s flags come from the torch-free training.train_config: a bad preset is
-    refused before torch is imported (seconds), and without the extra installed any
-    arguments say which extra to install."""
-    probe = (
-        "import sys\n"
-        "from constraint_aware.cli import main\n"
-        "code = main(['train', '--preset', 'nope', '--quiet'])\n"
-        "assert 'torch' not in sys.modules, 'torch imported'\n"
-        "sys.exit(code)\n"
-    )
-    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
-    assert out.returncode == 2 and "'fast', 'paper'" in out.stderr, out.stderr
+    """`cap train`'s flags come from the torch-free training.train_config: a bad preset or
+    environment range is refused before torch is imported (seconds), and without the extra
+    installed any arguments say which extra to install."""
+    for argv, said in (
+        ("'--preset', 'nope'", "'fast', 'paper'"),
+        ("'--env.friction', '0.3', '0.1'", "friction"),
+    ):
+        probe = (
+            "import sys\n"
+            "from constraint_aware.cli import main\n"
+            f"code = main(['train', {argv}, '--quiet'])\n"
+            "assert 'torch' not in sys.modules, 'torch imported'\n"
+            "sys.exit(code)\n"
+        )
+        out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+        assert out.returncode == 2 and said in out.stderr, out.stderr
     blocked = (
         "import sys\n"
         "sys.modules['torch'] = None\n"

@@ -274,8 +274,6 @@ def cmd_train(args: argparse.Namespace) -> int:
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from constraint_aware.policy import shipped_policy_path
-    from constraint_aware.training import ppo
-    from constraint_aware.training.curve import plot_learning_curve
     from constraint_aware.training.train_config import make_config
 
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
@@ -285,6 +283,10 @@ def cmd_train(args: argparse.Namespace) -> int:
     env_overrides = collect(args, env_specs)
     if env_overrides:
         config = dataclasses.replace(config, env=dataclasses.replace(config.env, **env_overrides))
+    # the configuration is checked: now the seconds of importing torch and SB3
+    from constraint_aware.training import ppo
+    from constraint_aware.training.curve import plot_learning_curve
+
     out = Path(args.out or f"runs/train-{config.preset}-seed{config.seed}")
     out_console = human(args)
 
