@@ -15,6 +15,7 @@ posture (the controller's null space follows the planned arm configuration).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -280,14 +281,21 @@ class JacoPlanner:
             count += int(hit[0] in arm and 0.0 <= at < distance)
         return count
 
+    def _usual_solutions(self, pose: Pose) -> Iterator[FloatArray]:
+        """The joint solutions (6,) [rad] for `pose` reached from the arm's usual elbow-up and
+        elbow-down seeds turned toward it (`_seeds`), in the seeds' order."""
+        for seed in self._seeds(pose, self._seeds(pose, np.zeros(6))[1])[1:]:
+            q = self._ik_from(seed, pose)
+            if q is not None:
+                yield q
+
     def roomiest_ik(self, pose: Pose) -> FloatArray:
         """(6,) [rad] of the collision-free solutions for `pose` (everything but the handle),
         the one farthest from the joint limits (as the arm is placed at a grasp,
         sim.jaco.JacoSim._search_ik); PlanningError when none."""
         best, best_margin = None, -math.inf
-        for seed in self._seeds(pose, self._seeds(pose, np.zeros(6))[1])[1:]:
-            q = self._ik_from(seed, pose)
-            if q is None or self.clearance(q, handle=False) < 0.0:
+        for q in self._usual_solutions(pose):
+            if self.clearance(q, handle=False) < 0.0:
                 continue
             margin = self.limit_margin(q)
             if margin > best_margin:
@@ -317,9 +325,8 @@ class JacoPlanner:
         best, best_margin = None, -math.inf
         tried: list[FloatArray] = []
         try:
-            for seed in self._seeds(grasp, self._seeds(grasp, np.zeros(6))[1])[1:]:
-                q0 = self._ik_from(seed, grasp)
-                if q0 is None or any(np.max(np.abs(_wrapped(q0 - t))) < 0.2 for t in tried):
+            for q0 in self._usual_solutions(grasp):
+                if any(np.max(np.abs(_wrapped(q0 - t))) < 0.2 for t in tried):
                     continue
                 tried.append(q0)
                 least = self._follow(q0, poses, fractions, task, margin, clear)
