@@ -34,16 +34,13 @@ import math
 import os
 import pstats
 import statistics
-import subprocess
-import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from constraint_aware.bench.provenance import write_results
+from constraint_aware.bench.provenance import parse_trees, run_trees, write_results
 from constraint_aware.bench.sweep import PAPER_OFFSETS
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor
@@ -174,16 +171,8 @@ def profile_table(profile: cProfile.Profile, top: int) -> list[dict[str, Any]]:
 def compare_trees(trees: dict[str, str], rounds: int, repeats: int, robot: str) -> dict[str, Any]:
     """The measurement of each source tree in `trees` (name -> src directory) in a subprocess,
     interleaved over `rounds` (module docstring)."""
-    runs: dict[str, list[dict[str, Any]]] = {name: [] for name in trees}
-    with tempfile.TemporaryDirectory() as tmp:
-        for i in range(rounds):
-            for name, src in trees.items():
-                out = Path(tmp) / f"{name}-{i}.json"
-                command = [sys.executable, __file__, "--repeats", str(repeats)]
-                command += ["--robot", robot, "--out", str(out)]
-                env = {**os.environ, "PYTHONPATH": src}
-                subprocess.run(command, env=env, check=True, capture_output=True)
-                runs[name].append(json.loads(out.read_text()))
+    arguments = ["--repeats", str(repeats), "--robot", robot]
+    runs = run_trees(__file__, arguments, trees, rounds)
     keys = ("step_cpu_us_median", "step_cpu_us_p99", "act_batch_us_median")
     first = next(iter(trees))
     table: dict[str, Any] = {
@@ -215,10 +204,10 @@ def main() -> None:
     if args.trees:
         if args.rounds < 1:
             parser.error("--rounds must be >= 1")
-        pairs = [item.partition("=") for item in args.trees.split(",")]
-        if any(not name or not src for name, _, src in pairs):
-            parser.error("--trees: expected NAME=SRC,NAME=SRC")
-        trees = {name: src for name, _, src in pairs}
+        try:
+            trees = parse_trees(args.trees)
+        except ValueError as exc:
+            parser.error(str(exc))
         compared = compare_trees(trees, args.rounds, args.repeats, args.robot)
         write_results(args.out, compared)
         print(json.dumps(compared, indent=1))

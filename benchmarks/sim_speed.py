@@ -54,9 +54,6 @@ import json
 import math
 import os
 import statistics
-import subprocess
-import sys
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -68,7 +65,7 @@ import mujoco
 import constraint_aware  # noqa: F401  (registers the Gymnasium envs)
 import constraint_aware.control.executor as executor_module
 import constraint_aware.control.guards as guards_module
-from constraint_aware.bench.provenance import write_results
+from constraint_aware.bench.provenance import parse_trees, run_trees, write_results
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.envs import task_env_id
@@ -350,16 +347,8 @@ def compare_trees(
 ) -> dict[str, Any]:
     """The `suite` measurement of each source tree in `trees` (name -> src directory) in a
     subprocess, interleaved over `rounds` (module docstring)."""
-    results: dict[str, list[dict[str, Any]]] = {name: [] for name in trees}
-    with tempfile.TemporaryDirectory() as tmp:
-        for i in range(rounds):
-            for name, src in trees.items():
-                out = Path(tmp) / f"{name}-{i}.json"
-                command = [sys.executable, __file__, "--parts", "suite", "--repeats", str(repeats)]
-                command += ["--robots", ",".join(robots), "--out", str(out)]
-                env = {**os.environ, "PYTHONPATH": src}
-                subprocess.run(command, env=env, check=True, capture_output=True)
-                results[name].append(json.loads(out.read_text()))
+    arguments = ["--parts", "suite", "--repeats", str(repeats), "--robots", ",".join(robots)]
+    results = run_trees(__file__, arguments, trees, rounds)
     first = next(iter(trees))
     table: dict[str, Any] = {}
     for robot in robots:
@@ -408,10 +397,11 @@ def main() -> None:
     if args.trees:
         if args.rounds < 1:
             parser.error("--rounds must be >= 1")
-        pairs = [item.partition("=") for item in args.trees.split(",")]
-        if any(not name or not src for name, _, src in pairs):
-            parser.error("--trees: expected NAME=SRC,NAME=SRC")
-        compared = compare_trees({n: s for n, _, s in pairs}, args.rounds, args.repeats, robots)
+        try:
+            trees = parse_trees(args.trees)
+        except ValueError as exc:
+            parser.error(str(exc))
+        compared = compare_trees(trees, args.rounds, args.repeats, robots)
         write_results(args.out, compared)
         print(json.dumps(compared, indent=1))
         return

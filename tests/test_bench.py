@@ -280,3 +280,15 @@ def test_a_sweep_prints_each_run_input_warning_once(caplog: pytest.LogCaptureFix
     messages = [r.getMessage() for r in caplog.records]
     assert messages.count("play_force missing: stage play_compensation off") == 2
     assert messages.count("rotation_rate missing: stage rotational_part off") == 1
+
+
+def test_parse_trees_keeps_the_order_and_names_the_expected_form() -> None:
+    from constraint_aware.bench.provenance import parse_trees
+
+    assert list(parse_trees("main=/a/src,new=/b/src").items()) == [
+        ("main", "/a/src"),
+        ("new", "/b/src"),
+    ]
+    for bad in ("main", "main=/a/src,=/b/src", "main="):
+        with pytest.raises(ValueError, match="NAME=SRC,NAME=SRC"):
+            parse_trees(bad)

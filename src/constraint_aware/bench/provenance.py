@@ -2,7 +2,9 @@
 
 Every results file (`cap bench`'s results.json and each script under `benchmarks/`) carries
 `provenance()` under the key "provenance", so a number can always be traced to the code and
-the machine that produced it. Timings are only comparable within one such record.
+the machine that produced it. Timings are only comparable within one such record; to
+compare versions of the code, `run_trees` measures each source tree in the same record,
+interleaved.
 """
 
 from __future__ import annotations
@@ -13,6 +15,9 @@ import json
 import os
 import platform
 import subprocess
+import sys
+import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -96,3 +101,31 @@ def write_results(path: str | Path, results: dict[str, Any]) -> Path:
     stamped = {"provenance": provenance(), **rest}
     out.write_text(json.dumps(stamped, indent=1) + "\n", encoding="utf-8")
     return out
+
+
+def parse_trees(text: str) -> dict[str, str]:
+    """`NAME=SRC,NAME=SRC` (a benchmark's --trees) as {name: src directory}, in order;
+    ValueError saying the expected form otherwise."""
+    pairs = [item.partition("=") for item in text.split(",")]
+    if any(not name or not src for name, _, src in pairs):
+        raise ValueError("--trees: expected NAME=SRC,NAME=SRC")
+    return {name: src for name, _, src in pairs}
+
+
+def run_trees(
+    script: str | Path, arguments: Sequence[str], trees: dict[str, str], rounds: int
+) -> dict[str, list[dict[str, Any]]]:
+    """`script arguments --out FILE` once per source tree and round, each in a subprocess
+    importing that tree (PYTHONPATH = its src directory), the trees interleaved round by round
+    so that a shared machine's load falls on each alike. Returns per tree its results (the
+    JSON the script wrote), in round order."""
+    results: dict[str, list[dict[str, Any]]] = {name: [] for name in trees}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(rounds):
+            for name, src in trees.items():
+                out = Path(tmp) / f"{name}-{i}.json"
+                command = [sys.executable, str(script), *arguments, "--out", str(out)]
+                env = {**os.environ, "PYTHONPATH": src}
+                subprocess.run(command, env=env, check=True, capture_output=True)
+                results[name].append(json.loads(out.read_text()))
+    return results
