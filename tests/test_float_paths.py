@@ -17,7 +17,7 @@ from constraint_aware.control.interface import ControlInput
 from constraint_aware.control.motion import next_target, paper_turn
 from constraint_aware.control.steady import SteadyDirection, across_force
 from constraint_aware.errors import InvalidInputError
-from constraint_aware.geometry import rotate_about, turn_vector
+from constraint_aware.geometry import cross, cross3, rotate_about, turn_vector
 from constraint_aware.policy import ConstraintAwarePolicy, mirror_average
 from constraint_aware.sim.robot_adapter import orientation_error
 from constraint_aware.spatial import Pose, turned
@@ -109,6 +109,13 @@ def test_next_target_follows_its_rule(rng: np.random.Generator, error_scale: flo
         ref = _reference_target(target, measured, move, normal, 0.01)
         assert np.allclose(out.position, ref, rtol=0, atol=TOL)
         assert out.orientation is target.orientation
+
+
+def test_cross3_is_numpys_cross(rng: np.random.Generator) -> None:
+    for _ in range(200):
+        a, b = rng.normal(size=3), rng.normal(size=3)
+        assert cross3(a.tolist(), b.tolist()) == tuple(np.cross(a, b).tolist())
+        assert np.array_equal(cross(a, b), np.cross(a, b))
 
 
 def test_across_force_is_the_force_along_n_cross_d(rng: np.random.Generator) -> None:

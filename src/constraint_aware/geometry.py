@@ -16,6 +16,7 @@ may differ from those paths in the last place.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -48,13 +49,20 @@ def as_vector(value: ArrayLike, name: str, *, batch: bool = False) -> FloatArray
     return arr
 
 
+def cross3(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
+    """a x b of two 3-vectors given as Python numbers (e.g. an array's `tolist()`), as Python
+    floats: `np.cross`'s products and differences in its order, the form the per-period paths
+    compute in (numpy's per-call overhead on 3-vectors is many times the arithmetic)."""
+    a0, a1, a2 = a
+    b0, b1, b2 = b
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
 def cross(a: FloatArray, b: FloatArray) -> FloatArray:
     """a x b along the last axis: (3,) for two (3,) vectors, else broadcast as `np.cross`."""
     a, b = np.asarray(a), np.asarray(b)
     if a.shape == (3,) and b.shape == (3,):
-        a0, a1, a2 = a.tolist()
-        b0, b1, b2 = b.tolist()
-        return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+        return np.array(cross3(a.tolist(), b.tolist()))
     return np.asarray(np.cross(a, b), dtype=np.float64)
 
 
@@ -98,7 +106,7 @@ def angle_deg(a: FloatArray, b: FloatArray) -> FloatArray | float:
     if a.shape == (3,) and b.shape == (3,):
         a0, a1, a2 = a.tolist()
         b0, b1, b2 = b.tolist()
-        c0, c1, c2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0  # a x b
+        c0, c1, c2 = cross3((a0, a1, a2), (b0, b1, b2))
         c = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
         return math.degrees(math.atan2(c, a0 * b0 + a1 * b1 + a2 * b2))
     cross_norm = np.linalg.norm(np.cross(a, b), axis=-1)
@@ -185,7 +193,7 @@ def turn_vector(a: FloatArray, b: FloatArray) -> FloatArray:
     for opposite vectors, any perpendicular axis)."""
     a0, a1, a2 = np.asarray(a, dtype=np.float64).tolist()
     b0, b1, b2 = np.asarray(b, dtype=np.float64).tolist()
-    x, y, z = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0  # a x b
+    x, y, z = cross3((a0, a1, a2), (b0, b1, b2))
     s = math.sqrt(x * x + y * y + z * z)
     c = a0 * b0 + a1 * b1 + a2 * b2
     if s < 1e-12:

@@ -33,6 +33,7 @@ from constraint_aware.geometry import (
     FloatArray,
     all_finite,
     as_vector,
+    cross3,
     norm,
     normalize_force,
     update_direction_rule,
@@ -244,10 +245,10 @@ def _mirrored_action(
     """`mirror_average` of a checked observation `obs` (n_in,) (finite, the policy's layout):
     the network runs on it and its mirror image without checking them again."""
     # m = unit(n x d) and M = I - 2 m m^T in Python floats, each product and sum in numpy's
-    # order (geometry.cross, geometry.norm, I - 2.0 * (m m^T)), M built as one array
-    n0, n1, n2 = np.asarray(normal, dtype=float).tolist()
-    d0, d1, d2 = np.asarray(direction, dtype=float).tolist()
-    c0, c1, c2 = n1 * d2 - n2 * d1, n2 * d0 - n0 * d2, n0 * d1 - n1 * d0
+    # order (geometry.cross3, geometry.norm, I - 2.0 * (m m^T)), M built as one array
+    c0, c1, c2 = cross3(
+        np.asarray(normal, dtype=float).tolist(), np.asarray(direction, dtype=float).tolist()
+    )
     size = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
     if size < 1e-9:  # d along n: no in-plane side to mirror
         return policy.act_batch(obs[None, :])[0]

@@ -19,6 +19,7 @@ from constraint_aware.errors import check_number
 from constraint_aware.geometry import (
     FloatArray,
     all_finite,
+    cross3,
     norm,
     rotate_about,
     turn_vector,
@@ -70,10 +71,11 @@ def across_force(inp: ControlInput) -> tuple[float, FloatArray] | None:
     is above the dead band."""
     if inp.workplane_normal is None:
         return None
-    # unit(n x d) and F.m in Python floats, in numpy's order (geometry.cross, geometry.unit)
-    n0, n1, n2 = np.asarray(inp.workplane_normal, dtype=float).tolist()
-    d0, d1, d2 = np.asarray(inp.direction, dtype=float).tolist()
-    c0, c1, c2 = n1 * d2 - n2 * d1, n2 * d0 - n0 * d2, n0 * d1 - n1 * d0
+    # unit(n x d) and F.m in Python floats, in numpy's order (geometry.cross3, geometry.unit)
+    c0, c1, c2 = cross3(
+        np.asarray(inp.workplane_normal, dtype=float).tolist(),
+        np.asarray(inp.direction, dtype=float).tolist(),
+    )
     size = math.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
     m0, m1, m2 = (c0 / size, c1 / size, c2 / size) if size > 1e-12 else (0.0, 0.0, 0.0)
     f0, f1, f2 = np.asarray(inp.force, dtype=float).tolist()
