@@ -15,7 +15,8 @@ demonstrations whose tracked point is up to 5 cm (plus 1 cm) from the handle, th
 point found in the head camera's depth image, reach, approach, grasp, manipulate, release,
 retreat and return home, with nothing of the simulated object at run time; beside each, the
 same placement started at the grasp from the demonstration above (today's run). Per robot and
-kind: successes, failures by phase, peak |F| of both, their paired difference, the
+kind: successes, failures by phase, peak |F| of both and their paired difference, the same
+for the true force between hand and object (independent of what the hand carried at F_d), the
 recognizer's error. `--kinds` runs some kinds only (each kind's placements are the same
 whichever others run).
 """
@@ -40,7 +41,7 @@ def _f(x: float | None, digits: int = 1) -> str:
 
 def end_to_end(args: argparse.Namespace) -> None:
     """The --end-to-end mode (module docstring)."""
-    from constraint_aware.bench.endtoend import SequenceRun, run_end_to_end
+    from constraint_aware.bench.endtoend import SequenceRun, run_end_to_end, summary_table
     from constraint_aware.bench.provenance import write_results
 
     start = time.perf_counter()
@@ -48,10 +49,12 @@ def end_to_end(args: argparse.Namespace) -> None:
     def progress(run: SequenceRun) -> None:
         peak = "-" if run.manipulation_peak_N is None else f"{run.manipulation_peak_N:.1f}"
         tele = "-" if run.teleported_peak_N is None else f"{run.teleported_peak_N:.1f}"
+        true = _f(run.object_force_peak_N)
+        true_tele = _f(run.teleported_object_force_peak_N)
         print(
             f"{run.robot} {run.kind} {run.index}: {run.outcome} "
-            f"({run.failed_phase or 'all phases'}), peak {peak} N (teleported "
-            f"{run.teleported_outcome}, {tele} N), {run.wall_time_s:.0f} s",
+            f"({run.failed_phase or 'all phases'}), peak {peak} N, true {true} N (teleported "
+            f"{run.teleported_outcome}, {tele} N, true {true_tele} N), {run.wall_time_s:.0f} s",
             flush=True,
         )
 
@@ -63,20 +66,7 @@ def end_to_end(args: argparse.Namespace) -> None:
     data = result.to_dict()
     data["wall_time_s"] = time.perf_counter() - start
     out = write_results(args.out or HERE / "results" / "end_to_end.json", data)
-    print(
-        "| robot | kind | success | failures by phase | peak F median [N] | teleported | "
-        "teleported peak F median [N] | paired difference median [N] | contact error "
-        "median / p95 [mm] |"
-    )
-    print("|---" * 9 + "|")
-    for s in result.summary:
-        failures = ", ".join(f"{k} x{v}" for k, v in s["failures"].items()) or "-"
-        print(
-            f"| {s['robot']} | {s['kind']} | {s['successes']}/{s['n']} | {failures} | "
-            f"{_f(s['peak_N_median'])} | {s['teleported_successes']}/{s['n']} | "
-            f"{_f(s['teleported_peak_N_median'])} | {_f(s['peak_difference_N_median'], 2)} | "
-            f"{_f(s['contact_error_mm_median'])} / {_f(s['contact_error_mm_p95'])} |"
-        )
+    print("\n".join(summary_table(result.summary)))
     print(f"wrote {out} in {data['wall_time_s']:.0f} s")
 
 

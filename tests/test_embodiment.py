@@ -519,3 +519,38 @@ def test_the_compiled_osc_is_the_documented_law(
         got = sim.data.ctrl[sim._act_slice]
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
         mujoco.mj_step(sim.model, sim.data, nstep=2)
+
+
+@pytest.mark.parametrize("robot", ["hook-hand", "jaco"])
+def test_object_force_is_the_force_on_the_hand_from_outside(robot: str) -> None:
+    # pressing on the plate: the sum of the contact forces on the hand's geoms (MuJoCo's
+    # mj_contactForce: geom1's force on geom2, in the contact frame)
+    sim = make_embodiment(robot, task_config("plate-sliding"))
+    sim.reset()
+    for _ in range(3):
+        sim.command_pose(sim.commanded_pose())
+        sim.advance()
+    m, d = sim.model, sim.data
+    on_hand, f6 = np.zeros(3), np.zeros(6)
+    for i in range(d.ncon):
+        c = d.contact[i]
+        if (c.geom1 in sim._hand_geoms) != (c.geom2 in sim._hand_geoms):
+            mujoco.mj_contactForce(m, d, i, f6)
+            world = c.frame.reshape(3, 3).T @ f6[:3]
+            on_hand += world if c.geom2 in sim._hand_geoms else -world
+    assert on_hand[2] > 5.0  # the plate pushes the pressing pads up
+    np.testing.assert_allclose(sim.object_force(), on_hand, atol=0.02)
+    # contacts off, a known force on the hand's body: exactly that force, the weight removed
+    sim = make_embodiment(robot, task_config("plate-sliding"))
+    sim.reset()
+    flags = sim.model.opt.disableflags  # the compiled model is shared (cached): restored
+    sim.model.opt.disableflags = flags | mujoco.mjtDisableBit.mjDSBL_CONTACT
+    try:
+        applied = np.array([1.0, -2.0, 5.0])
+        sim.data.xfrc_applied[sim.model.site_bodyid[sim._wrist_site], :3] = applied
+        for _ in range(15):
+            sim.command_pose(sim.commanded_pose())
+            sim.advance()
+        np.testing.assert_allclose(sim.object_force(), applied, atol=0.01)
+    finally:
+        sim.model.opt.disableflags = flags

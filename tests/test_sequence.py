@@ -372,3 +372,19 @@ def test_cli_input_errors_exit_2_naming_the_flag(
         code = int(exc.code or 0)
     assert code == 2
     assert message in capsys.readouterr().err
+
+
+def test_a_teleported_lid_tares_part_of_its_weight_the_true_force_does_not() -> None:
+    # the teleported start reads F_d with the lid partly resting on the hand, the sequence's
+    # grasp before lifting it: F = F_s - F_d differs by that tare, the true hand-object force
+    # (what the end-to-end benchmark compares beside it) by far less
+    from constraint_aware.bench.endtoend import run_end_to_end
+
+    run = run_end_to_end(1, ("hook-hand",), kinds=("lid",)).runs[0]
+    assert run.success and run.teleported_success
+    assert run.manipulation_peak_N is not None and run.teleported_peak_N is not None
+    assert run.object_force_peak_N is not None and run.teleported_object_force_peak_N is not None
+    tare_gap = run.manipulation_peak_N - run.teleported_peak_N
+    true_gap = run.object_force_peak_N - run.teleported_object_force_peak_N
+    assert tare_gap > 2.0
+    assert abs(true_gap) < tare_gap / 2

@@ -279,7 +279,7 @@ def run(
             _attach_setup_record(exc, spec)
             raise
     task, sim = grasped(spec)
-    robot: Robot = sim if on_step is None else _Observed(sim, on_step)  # type: ignore[assignment]
+    robot: Robot = sim if on_step is None else observed(sim, on_step)
     if wrap is not None:
         robot = wrap(robot)  # type: ignore[arg-type]
     cfg = executor_config(task, spec.torque_policy)
@@ -353,8 +353,14 @@ def _attach_setup_record(exc: BaseException, spec: RunSpec) -> None:
         exc.run_record = record  # type: ignore[attr-defined]
 
 
+def observed(sim: Embodiment, on_period: Callable[[Embodiment], None]) -> Robot:
+    """`sim` as the Robot an executor drives, calling on_period(sim) once now and after every
+    `advance()` (observers: video frames, scoring; not for control)."""
+    return _Observed(sim, on_period)  # type: ignore[return-value]
+
+
 class _Observed:
-    """Forwards to the sim and calls `on_step` after each period (for video frames)."""
+    """Forwards to the sim and calls `on_step` after each period (`observed`)."""
 
     def __init__(self, sim: Embodiment, on_step: Callable[[Embodiment], None]) -> None:
         self._sim = sim

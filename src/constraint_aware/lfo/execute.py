@@ -23,7 +23,7 @@ from constraint_aware.control.controllers import driving_policy
 from constraint_aware.control.executor import Executor
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import RunRecord
-from constraint_aware.control.simulate import simulated_robot
+from constraint_aware.control.simulate import observed, simulated_robot
 from constraint_aware.errors import CapError
 from constraint_aware.geometry import FloatArray, angle_deg
 from constraint_aware.lfo.infer import SkillParameters
@@ -127,6 +127,7 @@ def execute(
     robot: str = DEFAULT_ROBOT,
     profile: RobotProfile | None = None,
     strict_inputs: bool = False,
+    on_period: Callable[[Any], None] | None = None,
 ) -> tuple[RunRecord, dict[str, Any]]:
     """Run the skill; returns the record and what was built and how the estimates compare
     with the simulated object's truth.
@@ -136,6 +137,7 @@ def execute(
     InvalidInputError naming the valid ones, before anything is built.
     profile: the robot's calibration (`Executor.profile`); strict_inputs: refuse to run when
     an input a controller stage needs is missing (`ExecutorConfig.strict_inputs`).
+    on_period(sim): called once at the start and after every control period (scoring, video).
     Raises CapError (UncertainEstimateError) before anything moves when the constraint is
     unknown or the estimates are too uncertain for the grasp (lfo/plausibility.py).
     """
@@ -180,7 +182,8 @@ def execute(
     driver = driving_policy(ctrl)
     if driver is not None:
         label["policy"] = driver.name  # which policy drove the run (the card's name)
-    record = Executor(sim, ctrl, cfg, monitor=sim, profile=profile).run(d0, label)
+    driven = sim if on_period is None else observed(sim, on_period)
+    record = Executor(driven, ctrl, cfg, monitor=sim, profile=profile).run(d0, label)
     info = {
         "task": task.name,
         "kind": kind,

@@ -344,6 +344,8 @@ class SimulatedRobot(ABC):
         names = [FILTER_PREFIX + f[0] for f in FILTER_SENSORS] + [FILTER_PREFIX + FILTER_CONTACT]
         self._filter_index, self._filter_cursor = _history_index(m, names)
         tcp_body, wrist_body = m.site_bodyid[self._tcp_site], m.site_bodyid[self._wrist_site]
+        # the sensor carries its body's subtree: the hand's weight is in every reading
+        self._hand_weight = float(m.body_subtreemass[wrist_body]) * np.array(m.opt.gravity)
         if m.sensor(names[0]).objid[0] != self._tcp_site or tcp_body != wrist_body:
             raise ConfigError(
                 "model",
@@ -545,6 +547,14 @@ class SimulatedRobot(ABC):
         and without drawing from its noise generator (ground truth for fault studies)."""
         w = self._filtered
         return Wrench(force=w[:3].copy(), torque=w[3:].copy())
+
+    def object_force(self) -> FloatArray:
+        """(3,) [N] world frame: the force the hand's surroundings (the held object, anything
+        it touches) exert on it, ground truth for scoring: `true_wrench`'s force less the
+        weight of the hand below the sensor. Quasi-static: the hand's own acceleration is
+        neglected. Unlike F = F_s - F_d it does not depend on what the hand carried when F_d
+        was read."""
+        return self._filtered[:3] - self._hand_weight
 
     def read_wrench(self) -> Wrench:
         """The wrist wrench averaged over the last 20 ms (a sensor's low-pass filter), with the
