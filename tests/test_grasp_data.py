@@ -13,9 +13,15 @@ from constraint_aware.lfo.grasp_data import GraspDataset, handle_visibility
 from constraint_aware.sim.camera import CameraMount, add_camera, look_at
 
 
-def _door_seen(blocker_group: int | None, blocker_size: float = 0.05) -> float:
+def _door_seen(
+    blocker_group: int | None,
+    blocker_size: float = 0.05,
+    target: np.ndarray | None = None,
+    around: np.ndarray | None = None,
+) -> float:
     """The door handle's visibility from a camera 1 m away, with a box of half-size
-    `blocker_size` [m] (in `blocker_group`) halfway along the line of sight, or none."""
+    `blocker_size` [m] (in `blocker_group`) halfway along the line of sight to `target` (the
+    handle's centre when None), or none; `around`: handle_visibility's."""
     from constraint_aware.sim.scene import scene_spec
     from constraint_aware.sim.tasks import task_config
 
@@ -26,10 +32,11 @@ def _door_seen(blocker_group: int | None, blocker_size: float = 0.05) -> float:
     mount = CameraMount("head", look_at(eye, handle))
     add_camera(spec, mount)
     if blocker_group is not None:
+        aim = handle if target is None else target
         geom = spec.worldbody.add_geom(
             type=mujoco.mjtGeom.mjGEOM_BOX,
             size=[blocker_size] * 3,
-            pos=[float(v) for v in 0.5 * (eye + handle)],
+            pos=[float(v) for v in 0.5 * (eye + aim)],
         )
         geom.contype = 0
         geom.conaffinity = 0
@@ -37,7 +44,20 @@ def _door_seen(blocker_group: int | None, blocker_size: float = 0.05) -> float:
     model = spec.compile()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    return handle_visibility(model, data, mount)
+    return handle_visibility(model, data, mount, around=around)
+
+
+def _door_handle_ends() -> tuple[np.ndarray, np.ndarray]:
+    """The two ends of the door's handle (its geom's axis), world frame [m]."""
+    from constraint_aware.sim.scene import OBJECT_PREFIX, scene_spec
+    from constraint_aware.sim.tasks import task_config
+
+    model = scene_spec(task_config("door-opening")).compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    g = model.geom(OBJECT_PREFIX + "object_handle").id
+    axis = data.geom_xmat[g].reshape(3, 3)[:, 2] * model.geom_size[g][1]
+    return data.geom_xpos[g] - axis, data.geom_xpos[g] + axis
 
 
 def test_a_box_in_the_line_of_sight_hides_the_handle() -> None:
@@ -45,6 +65,16 @@ def test_a_box_in_the_line_of_sight_hides_the_handle() -> None:
     assert _door_seen(1) < 0.05  # a rendered box halfway: the handle is hidden
     assert 0.1 < _door_seen(1, blocker_size=0.006) < 0.95  # a small one hides a part
     assert _door_seen(3) > 0.95  # a geom the camera does not render hides nothing
+
+
+def test_the_contact_points_surroundings_are_seen_apart_from_the_rest_of_the_handle() -> None:
+    # a box hiding one end of the handle: the handle partly seen, that end hidden, the other
+    # end seen
+    near, far = _door_handle_ends()
+    assert _door_seen(None, around=near) > 0.95
+    assert 0.1 < _door_seen(1, 0.015, target=near) < 0.9
+    assert _door_seen(1, 0.015, target=near, around=near) < 0.2
+    assert _door_seen(1, 0.015, target=near, around=far) > 0.95
 
 
 def test_a_dataset_file_without_visibility_loads_with_nan_and_a_foreign_file_is_named(
@@ -64,6 +94,7 @@ def test_a_dataset_file_without_visibility_loads_with_nan_and_a_foreign_file_is_
     np.savez(tmp_path / "old.npz", **fields)  # type: ignore[arg-type]
     old = GraspDataset.load(tmp_path / "old.npz")
     assert len(old) == n and np.all(np.isnan(old.visible))
+    assert np.all(np.isnan(old.contact_visible))
     np.savez(tmp_path / "other.npz", x=np.zeros(2))
     with pytest.raises(InvalidInputError, match="not a recognizer dataset"):
         GraspDataset.load(tmp_path / "other.npz")

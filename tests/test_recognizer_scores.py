@@ -39,6 +39,7 @@ def _dataset(shape: str, heights: np.ndarray, points: np.ndarray, tilt: np.ndarr
         offsets=np.linalg.norm(points, axis=1),
         nominal_errors=tilt,
         visible=np.ones(n),
+        contact_visible=np.ones(n),
     )
 
 
@@ -155,3 +156,14 @@ def test_a_face_too_small_to_fit_keeps_the_nominal_approach() -> None:
     np.testing.assert_allclose(face_normal(heights, np.zeros(3)), [0.0, 0.0, 1.0])
     empty = np.full((CROP_PIXELS, CROP_PIXELS), np.nan)
     np.testing.assert_allclose(face_normal(empty, np.zeros(3)), [0.0, 0.0, 1.0])
+
+
+def test_scores_on_a_subset_are_those_crops_alone() -> None:
+    from constraint_aware.lfo.grasp_training import Scores
+
+    kinds = np.array(["lid", "lid", "lid", "door"])
+    s = Scores("cnn", np.array([0.001, 0.002, 0.05, 0.003]), np.zeros(4), kinds, kinds)
+    seen = s.subset(np.array([True, True, False, True])).table()
+    assert seen["lid"]["n"] == 2 and seen["all"]["n"] == 3
+    assert seen["lid"]["p95_mm"] == pytest.approx(2.0)  # the hidden crop's 50 mm left out
+    assert s.table()["lid"]["p95_mm"] == pytest.approx(50.0)

@@ -65,6 +65,13 @@ SIZE_RANGES: dict[str, dict[str, tuple[tuple[float, float], ...]]] = {
     "knob": {"handle_half": ((0.015, 0.025), (0.010, 0.016), (0.009, 0.015))},
 }
 MAX_DISTRACTORS = 3
+#: [m] the contact point's surroundings on the handle (about half a hand's width): what the
+#: recognizer must see of the handle to place the contact point (`handle_visibility`).
+CONTACT_RADIUS = 0.03
+#: A crop's contact point counts as seen when its camera sees at least this share of the
+#: handle within CONTACT_RADIUS of it (`contact_visible`): mostly hidden, it lies behind
+#: whatever hides it, where no single view locates it.
+SEEN_SHARE = 0.5
 DEMO_NOISE = 0.005  # [m] the demonstrations' tracking noise (bench.placement's)
 
 
@@ -74,8 +81,9 @@ class GraspDataset:
     into HANDLE_SHAPES; points (N, 3) [m] and approaches (N, 3) unit: the truth in the crop
     frame; kinds, robots (N,) names; offsets (N,) [m] the demonstrated point's distance from
     the contact point; nominal_errors (N,) [deg] the nominal approach's error; visible (N,)
-    [0, 1] the share of the handle its camera sees unoccluded (`handle_visibility`; NaN in a
-    file written without it)."""
+    [0, 1] the share of the handle its camera sees unoccluded (`handle_visibility`), and
+    contact_visible (N,) [0, 1] that of the handle within `CONTACT_RADIUS` of the contact
+    point (NaN in a file written without them)."""
 
     heights: np.ndarray
     shapes: np.ndarray
@@ -86,6 +94,7 @@ class GraspDataset:
     offsets: np.ndarray
     nominal_errors: np.ndarray
     visible: np.ndarray
+    contact_visible: np.ndarray
 
     def __len__(self) -> int:
         return len(self.shapes)
@@ -102,8 +111,9 @@ class GraspDataset:
     def load(cls, path: str | Path) -> GraspDataset:
         with np.load(Path(path), allow_pickle=False) as data:
             fields = {f.name: data[f.name] for f in dataclasses.fields(cls) if f.name in data}
-        if "visible" not in fields and "shapes" in fields:
-            fields["visible"] = np.full(len(fields["shapes"]), np.nan)
+        for name in ("visible", "contact_visible"):
+            if name not in fields and "shapes" in fields:
+                fields[name] = np.full(len(fields["shapes"]), np.nan)
         missing = [f.name for f in dataclasses.fields(cls) if f.name not in fields]
         if missing:
             raise InvalidInputError(f"{path}: not a recognizer dataset (no {', '.join(missing)})")
@@ -156,23 +166,36 @@ def contact_label(
 VISIBILITY_RAYS = 40
 
 
-def handle_visibility(model: mujoco.MjModel, data: mujoco.MjData, mount: CameraMount) -> float:
+def handle_visibility(
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    mount: CameraMount,
+    around: FloatArray | None = None,
+    radius: float = CONTACT_RADIUS,
+) -> float:
     """The share [0, 1] of the handle (the object's grasped geom) that the camera at `mount`
     sees unoccluded: of the camera's rays through a `VISIBILITY_RAYS` square grid over the
     handle's image that meet the handle, those whose first surface (of the geoms the camera
     renders) is the handle. What hides it may be a distractor or the object itself; the
-    sensor's missing returns do not count here. NaN when no ray meets the handle."""
+    sensor's missing returns do not count here. `around` (3,) [m]: only the part of the handle
+    within `radius` [m] of that point along each of the handle's axes (the contact point's
+    surroundings). NaN when no ray meets the handle."""
     handle = model.geom(OBJECT_PREFIX + "object_handle").id
     pos = np.asarray(data.geom_xpos[handle], dtype=float)
-    mat = np.asarray(data.geom_xmat[handle], dtype=float)
+    mat = np.asarray(data.geom_xmat[handle], dtype=float).reshape(3, 3)
     size = np.asarray(model.geom_size[handle], dtype=float)
-    # the handle's bounding box corners (a capsule's or a cylinder's too: size[0] its radius)
+    # the handle's bounding box (a capsule's or a cylinder's too: size[0] its radius)
     kind = int(model.geom_type[handle])
     half = size.copy()
     if kind in (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER)):
         half = np.array([size[0], size[0], size[1] + size[0]])
+    centre = np.zeros(3)
+    if around is not None:  # the box's part within `radius` of the point, in the handle frame
+        local = mat.T @ (np.asarray(around, dtype=float) - pos)
+        lo, hi = np.maximum(-half, local - radius), np.minimum(half, local + radius)
+        centre, half = 0.5 * (lo + hi), np.maximum(0.5 * (hi - lo), 1e-4)
     signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
-    corners = pos + (signs * half) @ mat.reshape(3, 3).T
+    corners = pos + (centre + signs * half) @ mat.T
     cam = mount.pose.to_camera(corners)
     if np.any(cam[:, 2] <= 1e-6):
         return float("nan")
@@ -184,7 +207,8 @@ def handle_visibility(model: mujoco.MjModel, data: mujoco.MjData, mount: CameraM
     rays = np.stack([gx.ravel(), gy.ravel(), np.ones(gx.size)], axis=1)
     rays = np.asarray(unit(rays @ mount.pose.rotation.T))
     origin = np.asarray(mount.pose.position, dtype=float)
-    meets = np.array([mujoco.mju_rayGeom(pos, mat, size, origin, r, kind) >= 0.0 for r in rays])
+    flat = mat.ravel()
+    meets = np.array([mujoco.mju_rayGeom(pos, flat, size, origin, r, kind) >= 0.0 for r in rays])
     if not np.any(meets):
         return float("nan")
     first = np.zeros(len(rays), dtype=np.int32)
@@ -297,6 +321,7 @@ def scene_samples(
             rows["offsets"].append(float(np.linalg.norm(frame.origin - truth)))
             rows["nominal_errors"].append(float(angle_deg(frame.rotation[:, 2], approach)))
             rows["visible"].append(visible)
+            rows["contact_visible"].append(handle_visibility(model, data, mount, around=truth))
     return GraspDataset(**{k: np.asarray(v) for k, v in rows.items()})
 
 

@@ -63,6 +63,16 @@ class Scores:
             }
         return out
 
+    def subset(self, mask: np.ndarray) -> Scores:
+        """These scores on the crops where `mask` (N,) bool is True."""
+        return Scores(
+            self.method,
+            self.position[mask],
+            self.approach[mask],
+            self.kinds[mask],
+            self.robots[mask],
+        )
+
 
 def _finite(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
