@@ -189,26 +189,3 @@ def test_leaving_a_pressed_knob_is_not_a_contact() -> None:
     retreat = record.phase("retreat")
     assert retreat.outcome == "ok", retreat.reason
     assert retreat.peak_force < SequenceConfig().leave.contact_limit
-
-
-def test_the_wrist_rests_once_the_fingers_have_closed() -> None:
-    # the Jaco's fingers meet a drawer's bar a period after the grasp's first settle: the wrist
-    # is told to hold only once they stop, so F_d is read with no load standing on the bar
-    # (held from before they met it, the bar stood pressed with 2.8 N)
-    from constraint_aware.lfo.sequence import run_in_simulation
-    from constraint_aware.policy import ConstraintAwarePolicy
-
-    place, skill = _placed("drawer", 0)
-    seen: dict[str, Any] = {}
-
-    def on_phase(name: str, sim: Any) -> None:
-        if name == "grasp":
-            seen["moving"] = sim.fingers_moving()
-            seen["load"] = float(np.linalg.norm(sim.object_force()))
-
-    record = run_in_simulation(
-        skill, place.task, "jaco", policy=ConstraintAwarePolicy.load(), seed=0, on_phase=on_phase
-    ).record
-    assert record.phase("grasp").outcome == "ok"
-    assert not seen["moving"]
-    assert seen["load"] < 0.5

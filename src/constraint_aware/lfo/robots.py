@@ -109,11 +109,6 @@ class SequenceRobot(ABC):
     def open_hand(self, shape: str) -> None:
         """Open the hand to release a `shape` handle."""
 
-    def hand_moving(self) -> bool:
-        """Whether the hand's fingers are still closing or opening (a gripper driver's motion
-        state)."""
-        return self._sim.fingers_moving()
-
     def grasp_touches(self, shape: str) -> bool:
         """Whether the closed hand touches a `shape` handle it holds (its contact sensing
         must then report contact before the manipulation); True unless the hand says."""
