@@ -189,29 +189,3 @@ def test_leaving_a_pressed_knob_is_not_a_contact() -> None:
     retreat = record.phase("retreat")
     assert retreat.outcome == "ok", retreat.reason
     assert retreat.peak_force < SequenceConfig().leave.contact_limit
-
-
-def test_the_wrist_rests_once_the_fingers_have_closed_then_takes_up_the_bars_play() -> None:
-    # the Jaco's fingers meet a drawer's bar a period after the grasp's first settle: the wrist
-    # is told to hold only once they stop (held from before they met it, the bar stood pressed
-    # with 2.8 N when F_d was read); the curled fingers then hook the bar with play, and the
-    # take-up brings them against it with no more than its contact limit
-    from constraint_aware.lfo.sequence import SequenceConfig, run_in_simulation
-    from constraint_aware.policy import ConstraintAwarePolicy
-
-    place, skill = _placed("drawer", 0)
-    seen: dict[str, Any] = {}
-
-    def on_phase(name: str, sim: Any) -> None:
-        if name == "grasp":
-            seen["moving"] = sim.fingers_moving()
-            seen["load"] = float(np.linalg.norm(sim.object_force()))
-
-    record = run_in_simulation(
-        skill, place.task, "jaco", policy=ConstraintAwarePolicy.load(), seed=0, on_phase=on_phase
-    ).record
-    grasp = record.phase("grasp")
-    assert grasp.outcome == "ok" and "take_up" in grasp.details
-    assert not seen["moving"]
-    assert seen["load"] <= SequenceConfig().take_up.contact_limit
-    assert record.success

@@ -109,11 +109,6 @@ class SequenceRobot(ABC):
     def open_hand(self, shape: str) -> None:
         """Open the hand to release a `shape` handle."""
 
-    def hand_moving(self) -> bool:
-        """Whether the hand's fingers are still closing or opening (a gripper driver's motion
-        state)."""
-        return self._sim.fingers_moving()
-
     def grasp_touches(self, shape: str) -> bool:
         """Whether the closed hand touches a `shape` handle it holds (its contact sensing
         must then report contact before the manipulation); True unless the hand says."""
@@ -232,11 +227,6 @@ class JacoRobot(SequenceRobot):
 
     def close_hand(self, shape: str) -> None:
         self._jaco.set_fingers(JACO_GRASPS[_check_shape(shape)].finger_target)
-
-    def grasp_touches(self, shape: str) -> bool:
-        # a bar is hooked: curled fingers around it, with play, touch it only when the hand
-        # pulls (the grasp then takes the play up)
-        return _check_shape(shape) != "bar"
 
     def open_hand(self, shape: str) -> None:
         # back to the shape the hand came in with: a fist opened on a plate would push its

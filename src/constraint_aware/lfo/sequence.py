@@ -435,11 +435,11 @@ def _run_phases(
         target = grasp
     settle = max(1, round(robot.settle_time / robot.control_period))
 
-    def rest(target: Pose, periods: int = settle) -> bool | None:
-        """Command `target` for `periods` periods: whether the hand touched the handle (None:
+    def rest(target: Pose) -> bool | None:
+        """Command `target` for `settle` periods: whether the hand touched the handle (None:
         a reading was not finite)."""
         touched = False
-        for _ in range(periods):
+        for _ in range(settle):
             robot.command_pose(target)
             robot.advance()
             phase.periods += 1
@@ -452,14 +452,6 @@ def _run_phases(
         return touched
 
     touched = rest(target)
-    # and on while the fingers still close (up to another settle): told to hold while they
-    # move, the wrist would take up the load of fingers meeting the handle after the hold, and
-    # F_d would hide it
-    for _ in range(settle):
-        if touched is None or not robot.hand_moving():
-            break
-        more = rest(target, 1)
-        touched = None if more is None else touched or more
     if touched is not None and press == 0:
         # the wrist rests where closing left it (no preload) ...
         robot.hold()

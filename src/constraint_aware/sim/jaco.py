@@ -321,7 +321,6 @@ class JacoSim(Embodiment):
         self._arm_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in ARM_JOINTS])
         self._arm_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in ARM_JOINTS])
         self._finger_qpos = np.array([m.jnt_qposadr[m.joint(j).id] for j in FINGER_JOINTS])
-        self._finger_dof = np.array([m.jnt_dofadr[m.joint(j).id] for j in FINGER_JOINTS])
         self._arm_act = np.array([m.actuator(ARM_PREFIX + f"joint_{i}").id for i in range(1, 7)])
         self._finger_act = np.array(
             [m.actuator(f"{ARM_PREFIX}{HAND_PREFIX}finger_{i}").id for i in range(1, 4)]

@@ -35,8 +35,6 @@ TIMESTEP = 0.002  # [s]
 CONTROL_PERIOD = 0.1  # [s] paper 5.1: the direction is updated every 100 ms
 RAMP_CHUNKS = 10  # the commanded pose is interpolated over the period in this many pieces
 SETTLE_TIME = 0.4  # [s] after placing the hand, and again after re-targeting the wrist
-#: [rad/s] a finger turning slower than this has stopped (the hand has closed or opened)
-FINGERS_STILL = 0.02
 FILTER_STEPS = 10  # the wrench is averaged over the last 10 substeps (20 ms) of a period
 #: where each piece of the period's setpoint ramp lies between the last setpoint and the goal
 RAMP_FRACTIONS = np.arange(1, RAMP_CHUNKS + 1) / RAMP_CHUNKS
@@ -329,7 +327,6 @@ class SimulatedRobot(ABC):
     data: mujoco.MjData
     task: TaskConfig
     _arm_act: FloatArray  # the arm's actuator ids (one per Cartesian axis for servo arms)
-    _finger_dof: FloatArray  # the finger joints' dof addresses
     _period_steps: int = round(CONTROL_PERIOD / TIMESTEP)
     _piece_steps: np.ndarray  # (RAMP_CHUNKS,) int: substeps of each of the period's pieces
     settle_time: float = SETTLE_TIME  # [s] of each settling phase of the grasp (sim/grasp.py)
@@ -550,11 +547,6 @@ class SimulatedRobot(ABC):
         and without drawing from its noise generator (ground truth for fault studies)."""
         w = self._filtered
         return Wrench(force=w[:3].copy(), torque=w[3:].copy())
-
-    def fingers_moving(self) -> bool:
-        """Whether any finger joint turns faster than `FINGERS_STILL` (the hand is still
-        closing or opening)."""
-        return bool(np.any(np.abs(self.data.qvel[self._finger_dof]) > FINGERS_STILL))
 
     def object_force(self) -> FloatArray:
         """(3,) [N] world frame: the force the hand's surroundings (the held object, anything

@@ -133,7 +133,6 @@ class ManipulationSim(Embodiment):
         h = HOOK_PREFIX
         self._arm_qpos = np.array([m.jnt_qposadr[m.joint(h + j).id] for j in ARM_JOINTS])
         self._finger_qpos = np.array([m.jnt_qposadr[m.joint(h + j).id] for j in FINGER_JOINTS])
-        self._finger_dof = np.array([m.jnt_dofadr[m.joint(h + j).id] for j in FINGER_JOINTS])
         self._arm_act = np.array([m.actuator(h + j).id for j in ARM_JOINTS])
         self._arm_ctrl = consecutive(self._arm_act, "the hook hand's arm actuators")
         self._finger_act = np.array([m.actuator(h + j).id for j in FINGER_JOINTS])
