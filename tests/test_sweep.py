@@ -189,6 +189,18 @@ def test_map_in_order_keeps_the_jobs_order_on_any_executor() -> None:
     assert executor.finished[0] == (5,)  # the last job finished first
 
 
+def _ended(process: Any) -> bool:
+    """Whether `process` has ended: its exit code is known, or the system shows it gone or a
+    zombie (the pool's own thread may reap it first, after which `is_alive` cannot tell)."""
+    if process.exitcode is not None:
+        return True
+    try:
+        with open(f"/proc/{process.pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except FileNotFoundError:
+        return True
+
+
 def test_a_failed_bench_does_not_wait_for_its_side_process() -> None:
     """An exception (or Ctrl-C) in the bench ends its side process at once instead of waiting
     for the section it is running."""
@@ -208,7 +220,31 @@ def test_a_failed_bench_does_not_wait_for_its_side_process() -> None:
     for process in processes:
         process.join(timeout=10.0)
     assert time.perf_counter() - start < 20.0
-    assert processes and not any(process.is_alive() for process in processes)
+    assert processes and all(_ended(process) for process in processes)
+
+
+def test_a_failed_bench_ends_a_side_process_that_outlives_sigterm() -> None:
+    """A side process that does not end on SIGTERM (here: told to ignore it) is killed."""
+    import signal
+    import time
+
+    from constraint_aware.bench import run as bench_run
+
+    processes: list[Any] = []
+    with (
+        pytest.raises(RuntimeError, match="the bench failed"),
+        bench_run._side_process(2) as side,
+    ):
+        side.submit(signal.signal, signal.SIGTERM, signal.SIG_IGN).result(timeout=60.0)
+        sleeping = side.submit(time.sleep, 60.0)
+        while not sleeping.running():  # handed to the worker, not cancellable any more
+            time.sleep(0.01)
+        time.sleep(0.5)
+        processes += side._processes.values()  # type: ignore[attr-defined]
+        raise RuntimeError("the bench failed")
+    for process in processes:
+        process.join(timeout=10.0)
+    assert processes and all(_ended(process) for process in processes)
 
 
 def test_reuse_runs_makes_each_distinct_run_once(

@@ -339,6 +339,10 @@ def run_bench(
                 return _run_bench(out, cfg, loaded, policy, skipped, side, side)
 
 
+#: [s] how long a failed bench's side process may take to end after SIGTERM before SIGKILL
+SIDE_GRACE_S = 2.0
+
+
 @contextlib.contextmanager
 def _side_process(workers: int) -> Iterator[Executor]:
     """Where the sections that render run (the paper's snapshots, the end-to-end sequences'
@@ -359,6 +363,10 @@ def _side_process(workers: int) -> Iterator[Executor]:
         side.shutdown(wait=False, cancel_futures=True)
         for process in processes:
             process.terminate()
+        for process in processes:  # one still starting up may outlive SIGTERM's grace
+            process.join(timeout=SIDE_GRACE_S)
+            if process.is_alive():
+                process.kill()
         raise
     side.shutdown(wait=True)
 
