@@ -223,12 +223,16 @@ def test_a_failed_bench_does_not_wait_for_its_side_process() -> None:
     assert processes and all(_ended(process) for process in processes)
 
 
-def test_a_failed_bench_ends_a_side_process_that_outlives_sigterm() -> None:
+def test_a_failed_bench_ends_a_side_process_that_outlives_sigterm(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
     """A side process that does not end on SIGTERM (here: told to ignore it) is killed."""
     import signal
     import time
 
     from constraint_aware.bench import run as bench_run
+
+    monkeypatch.setattr(bench_run, "SIDE_GRACE_S", 0.2)
 
     processes: list[Any] = []
     with (
