@@ -177,9 +177,9 @@ def handle_visibility(
     sees unoccluded: of the camera's rays through a `VISIBILITY_RAYS` square grid over the
     handle's image that meet the handle, those whose first surface (of the geoms the camera
     renders) is the handle. What hides it may be a distractor or the object itself; the
-    sensor's missing returns do not count here. `around` (3,) [m]: only the part of the handle
-    within `radius` [m] of that point along each of the handle's axes (the contact point's
-    surroundings). NaN when no ray meets the handle."""
+    sensor's missing returns do not count here. `around` (3,) [m]: the rays over the image of
+    the handle's part within `radius` [m] of that point along each of the handle's axes (the
+    contact point's surroundings) only. NaN when no ray meets the handle."""
     handle = model.geom(OBJECT_PREFIX + "object_handle").id
     pos = np.asarray(data.geom_xpos[handle], dtype=float)
     mat = np.asarray(data.geom_xmat[handle], dtype=float).reshape(3, 3)
