@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from constraint_aware.bench.provenance import parse_trees, run_trees, write_results
+from constraint_aware.bench.provenance import run_trees, trees_from_args, write_results
 from constraint_aware.bench.sweep import PAPER_OFFSETS
 from constraint_aware.control.controllers import make_controller
 from constraint_aware.control.executor import Executor
@@ -201,13 +201,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.repeats < 1:
         parser.error("--repeats must be >= 1")
-    if args.trees:
-        if args.rounds < 1:
-            parser.error("--rounds must be >= 1")
-        try:
-            trees = parse_trees(args.trees)
-        except ValueError as exc:
-            parser.error(str(exc))
+    if trees := trees_from_args(parser, args):
         compared = compare_trees(trees, args.rounds, args.repeats, args.robot)
         write_results(args.out, compared)
         print(json.dumps(compared, indent=1))

@@ -65,7 +65,7 @@ import mujoco
 import constraint_aware  # noqa: F401  (registers the Gymnasium envs)
 import constraint_aware.control.executor as executor_module
 import constraint_aware.control.guards as guards_module
-from constraint_aware.bench.provenance import parse_trees, run_trees, write_results
+from constraint_aware.bench.provenance import run_trees, trees_from_args, write_results
 from constraint_aware.bench.sweep import PAPER_OFFSETS, suite_specs
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.envs import task_env_id
@@ -394,13 +394,7 @@ def main() -> None:
     if unknown := set(parts) - set(MEASURES):
         parser.error(f"--parts: unknown {sorted(unknown)}; valid: {', '.join(MEASURES)}")
     robots = args.robots.split(",")
-    if args.trees:
-        if args.rounds < 1:
-            parser.error("--rounds must be >= 1")
-        try:
-            trees = parse_trees(args.trees)
-        except ValueError as exc:
-            parser.error(str(exc))
+    if trees := trees_from_args(parser, args):
         compared = compare_trees(trees, args.rounds, args.repeats, robots)
         write_results(args.out, compared)
         print(json.dumps(compared, indent=1))

@@ -292,3 +292,25 @@ def test_parse_trees_keeps_the_order_and_names_the_expected_form() -> None:
     for bad in ("main", "main=/a/src,=/b/src", "main="):
         with pytest.raises(ValueError, match="NAME=SRC,NAME=SRC"):
             parse_trees(bad)
+
+
+def test_a_benchmarks_tree_arguments_are_checked_through_its_parser(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import argparse
+
+    from constraint_aware.bench.provenance import trees_from_args
+
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--trees")
+    parser.add_argument("--rounds", type=int, default=3)
+    assert trees_from_args(parser, parser.parse_args([])) == {}
+    assert trees_from_args(parser, parser.parse_args(["--trees", "a=/a,b=/b"])) == {
+        "a": "/a",
+        "b": "/b",
+    }
+    for argv, said in ((["--trees", "a=/a", "--rounds", "0"], "--rounds must be >= 1"),
+                       (["--trees", "a"], "NAME=SRC,NAME=SRC")):  # fmt: skip
+        with pytest.raises(SystemExit):
+            trees_from_args(parser, parser.parse_args(argv))
+        assert said in capsys.readouterr().err

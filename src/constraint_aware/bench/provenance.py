@@ -9,6 +9,7 @@ interleaved.
 
 from __future__ import annotations
 
+import argparse
 import datetime
 import importlib.metadata
 import json
@@ -110,6 +111,19 @@ def parse_trees(text: str) -> dict[str, str]:
     if any(not name or not src for name, _, src in pairs):
         raise ValueError("--trees: expected NAME=SRC,NAME=SRC")
     return {name: src for name, _, src in pairs}
+
+
+def trees_from_args(parser: argparse.ArgumentParser, args: argparse.Namespace) -> dict[str, str]:
+    """A benchmark's `--trees` and `--rounds` checked: the trees ({} when `--trees` was not
+    given); a malformed `--trees` or `--rounds` below 1 exits through `parser.error`."""
+    if not args.trees:
+        return {}
+    if args.rounds < 1:
+        parser.error("--rounds must be >= 1")
+    try:
+        return parse_trees(args.trees)
+    except ValueError as exc:
+        parser.error(str(exc))
 
 
 def run_trees(
