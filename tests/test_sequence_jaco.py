@@ -51,7 +51,7 @@ def test_the_reach_targets_the_grasp_posture_that_follows_the_whole_motion() -> 
         JACO_PRESHAPE,
         MOTION_PIECES,
         JacoPlanner,
-        _wrapped,
+        largest_turn,
         motion_poses,
     )
 
@@ -71,13 +71,13 @@ def test_the_reach_targets_the_grasp_posture_that_follows_the_whole_motion() -> 
     assert least > 2 * band
     for pose in poses:  # followed piece by piece: no joint jumps
         nxt = planner._ik_from(q, pose)
-        assert nxt is not None and float(np.max(np.abs(_wrapped(nxt - q)))) <= BRANCH_JUMP
+        assert nxt is not None and largest_turn(nxt, q) <= BRANCH_JUMP
         assert planner.limit_margin(nxt) >= least - 1e-9
         q = nxt
     start, _ = planner.motion_ik(grasp, clear=False)
     pre = grasp.moved(-0.1 * grasp.orientation.apply([0.0, 0.0, 1.0]))
     q_pre = planner.pre_grasp_ik(pre, start)
-    assert float(np.max(np.abs(_wrapped(q_pre - start)))) <= BRANCH_JUMP
+    assert largest_turn(q_pre, start) <= BRANCH_JUMP
 
 
 def test_the_base_moves_when_the_perceived_grasp_is_out_of_reach() -> None:

@@ -89,6 +89,8 @@ MOTION_PIECES = 10
 #: arm's inverse-kinematics branch (a tenth of a door's swing turns the joints by at most
 #: about half a radian), which the arm cannot make while it holds the handle.
 BRANCH_JUMP = 1.0
+#: [rad] two joint solutions no joint of which differs by this much are the same posture.
+SAME_SOLUTION = 0.2
 
 
 class PlanningError(CapError):
@@ -326,7 +328,7 @@ class JacoPlanner:
         tried: list[FloatArray] = []
         try:
             for q0 in self._usual_solutions(grasp):
-                if any(np.max(np.abs(_wrapped(q0 - t))) < 0.2 for t in tried):
+                if any(largest_turn(q0, t) < SAME_SOLUTION for t in tried):
                     continue
                 tried.append(q0)
                 least = self._follow(q0, poses, fractions, task, margin, clear)
@@ -347,7 +349,7 @@ class JacoPlanner:
         `BRANCH_JUMP` of it in every joint, the planner's clearance from the believed object
         and `margin` [rad] from the joint limits; PlanningError otherwise."""
         q = self._ik_from(at_grasp, pre)
-        if q is None or float(np.max(np.abs(_wrapped(q - at_grasp)))) > BRANCH_JUMP:
+        if q is None or largest_turn(q, at_grasp) > BRANCH_JUMP:
             raise PlanningError("the pre-grasp is not on the grasp posture's arm configuration")
         if self.limit_margin(q) < margin or self.clearance(q) < self.config.clearance:
             raise PlanningError(
@@ -370,7 +372,7 @@ class JacoPlanner:
         least = math.inf
         for f, pose in zip(fractions, poses, strict=True):
             nxt = self._ik_from(q, pose)
-            if nxt is None or float(np.max(np.abs(_wrapped(nxt - q)))) > BRANCH_JUMP:
+            if nxt is None or largest_turn(nxt, q) > BRANCH_JUMP:
                 return None
             q = nxt
             least = min(least, self.limit_margin(q))
@@ -390,7 +392,7 @@ class JacoPlanner:
             q = self._ik_from(seed, pose)
             if q is None or self.clearance(q) < self.config.clearance:
                 continue
-            if all(float(np.max(np.abs(_wrapped(q - f)))) > 0.2 for f in found):
+            if all(largest_turn(q, f) > SAME_SOLUTION for f in found):
                 found.append(q)
             if len(found) >= 3:
                 break
@@ -526,6 +528,12 @@ class JacoPlanner:
 
 def _wrapped(a: FloatArray) -> FloatArray:
     return np.asarray((a + np.pi) % (2 * np.pi) - np.pi)
+
+
+def largest_turn(a: FloatArray, b: FloatArray) -> float:
+    """[rad] the most any joint turns between joint angles `a` and `b` (6,), each difference
+    wrapped into [-pi, pi)."""
+    return float(np.max(np.abs(_wrapped(a - b))))
 
 
 #: Placements (distance [m], azimuth [deg], height [m], sim.jaco.arm_base) tried for the base
