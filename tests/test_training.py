@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +36,11 @@ def final_angles(policy: ConstraintAwarePolicy | None, config: EnvConfig) -> np.
 
 
 @pytest.mark.slow
-def test_short_training_turns_d_toward_the_axis(tmp_path: Path) -> None:
+def test_short_training_turns_d_toward_the_axis(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
     # three PPO updates on 3000 samples each: the effect, not a converged policy, is tested; a
     # learner that did not learn (or learnt the wrong sign) keeps or worsens the angle
     config = make_config(
@@ -56,6 +61,7 @@ def test_short_training_turns_d_toward_the_axis(tmp_path: Path) -> None:
     assert metrics["policy"]["mean_final_angle_deg"] < metrics["noop"]["mean_final_angle_deg"]
     again = ConstraintAwarePolicy.load(tmp_path / "policy.npz")
     assert again.card["train_config"]["total_timesteps"] == 9000
+    assert not list((tmp_path / "tmp").glob("SB3-*"))  # no logger folder left behind
 
 
 def test_unknown_preset_lists_valid_names() -> None:

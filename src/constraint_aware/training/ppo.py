@@ -23,6 +23,7 @@ import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.torch_layers import MlpExtractor
 from stable_baselines3.common.utils import LinearSchedule
 from stable_baselines3.common.vec_env import VecEnv
@@ -206,7 +207,7 @@ def build_model(vec_env: VecEnv, config: TrainConfig) -> PPO:
         # annealed over total_timesteps: large early steps for speed, small late ones so the
         # last evaluations are not dominated by the step noise of a constant rate
         learning_rate = LinearSchedule(config.learning_rate, config.final_learning_rate, 1.0)
-    return PPO(
+    model = PPO(
         "MlpPolicy",
         vec_env,
         learning_rate=learning_rate,
@@ -226,6 +227,10 @@ def build_model(vec_env: VecEnv, config: TrainConfig) -> PPO:
         device="cpu",
         verbose=0,
     )
+    # a logger of its own: SB3's default makes an empty SB3-<date> folder in the temp directory
+    # at every learn()
+    model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
 
 
 CHECKPOINT = "model.zip"
