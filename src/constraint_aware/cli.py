@@ -499,7 +499,8 @@ def _run_parser(p: argparse.ArgumentParser) -> None:
 
 def _check_run_outputs(args: argparse.Namespace) -> None:
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
-    check_output(args.plot, "--plot", plot_suffixes())
+    if args.plot:  # matplotlib is imported only when a plot is asked for
+        check_output(args.plot, "--plot", plot_suffixes())
     if args.video:
         from constraint_aware.sim.render import check_video_path
 
@@ -1153,7 +1154,8 @@ def cmd_check_sensor(args: argparse.Namespace) -> int:
     from constraint_aware.control.simulate import RunSpec, probe
 
     check_output(args.json, "--json", JSON_SUFFIXES, stdout=True)
-    check_output(args.plot, "--plot", plot_suffixes())
+    if args.plot:  # matplotlib is imported only when a plot is asked for
+        check_output(args.plot, "--plot", plot_suffixes())
     spec = RunSpec(task=args.task, seed=args.seed, robot=args.robot)
     chosen = collect(args, args.probe_specs)
     config = ProbeConfig(**chosen) if chosen else None
