@@ -22,7 +22,10 @@ from scipy.spatial.transform import Rotation
 from constraint_aware.control.controllers import ControlInput, FixedDirection, PolicyController
 from constraint_aware.control.executor import Executor, ExecutorConfig
 from constraint_aware.control.executor_config import GoalConfig
+from constraint_aware.control.lag import LagModel
 from constraint_aware.control.record import RunRecord
+from constraint_aware.control.self_check import SensorSelfCheck
+from constraint_aware.control.sensor_health import DeflectionModel
 from constraint_aware.geometry import rotate_about
 from constraint_aware.policy import ConstraintAwarePolicy
 from constraint_aware.spatial import Pose, Wrench
@@ -237,3 +240,53 @@ def test_an_over_reported_lag_is_not_credited_beyond_the_lag_there() -> None:
     dead = LaggingGuide(tau=0.2, report_tau=0.6, sensor="dead")
     rec = run(dead, offset=40.0, policy=False)
     assert rec.outcome == "sensor_dead" and dead.peak_true_force <= 66.0
+
+
+def _jaco_plate_check(model: DeflectionModel | None) -> tuple[str, SensorSelfCheck]:
+    """The self-check on three readings of a healthy Jaco sliding a plate along +x (a
+    profile's tau 0.16 s, k 1260 N/m): at 13 mm/s the deflection explains F; at 64 and 83
+    mm/s the lag credit (10-13 mm) leaves 2 mm whose direction disagrees with F (the arm's
+    Cartesian stiffness couples the x lag into y)."""
+    lag = LagModel(0.16)
+    lag.begin(np.zeros(3), np.zeros(3))
+    check = SensorSelfCheck(8, 1260.0, np.array([0.0, 0.0, 1.0]), lag, model)
+    readings = [  # F [N], position - target [m], velocity [m/s], direction
+        ((-1.77, -5.63, 0), (-0.00787, -0.00379, 0), (0.0135, 0.0008, 0), (0.92, 0.39, 0)),
+        ((-0.78, -2.93, 0), (-0.01137, 0.00105, 0), (0.0635, 0.0032, 0), (1.0, -0.04, 0)),
+        ((-0.92, -3.24, 0), (-0.01308, 0.00122, 0), (0.083, 0.0036, 0), (1.0, -0.04, 0)),
+    ]
+    why = ""
+    for moves, (force, deflection, velocity, direction) in enumerate(readings, start=3):
+        lag.velocity = np.array(velocity)
+        d = np.array(direction) / np.linalg.norm(direction)
+        why = why or check.check(
+            moves, np.array(force), np.array(deflection), np.zeros(3), d, 0.45, []
+        )
+    return why, check
+
+
+def test_the_self_check_leaves_a_deflection_within_the_calibrated_error_unjudged() -> None:
+    """Without a deflection model the lag credit's remainder is judged and the healthy sensor
+    looks flipped; with the profile's measured error (3.8 N + 38 N s/m |v|) the two fast
+    readings imply 2.5 N, within it, and are not judged."""
+    why, check = _jaco_plate_check(None)
+    assert "sign flipped" in why and len(check.cosines) == 3
+    model = DeflectionModel(1260.0, 0.16, error=3.8, error_per_speed=38.0)
+    why, check = _jaco_plate_check(model)
+    assert why == "" and len(check.cosines) == 1 and check.cosines[0] > 0.7
+
+
+@pytest.mark.parametrize("sensor", ["flipped", "rotated_90"])
+def test_a_wrong_convention_is_caught_with_a_calibrated_deflection_model(sensor: str) -> None:
+    """The model's error bounds which moves are judged, not the verdict: with a profile that
+    measured it, a flipped sign or a rotated frame still stops the run."""
+    from test_profile_wiring import profile
+
+    robot = LaggingGuide(tau=0.2, report_tau=False, sensor=sensor)
+    calibrated = profile(
+        stiffness=robot.k, tracking_time_constant=0.2, deflection_error=0.5,
+        deflection_error_per_speed=5.0, force_noise=None,  # the guide's sensor is noise-free
+    )  # fmt: skip
+    rec = Executor(robot, FixedDirection(), GOAL, profile=calibrated).run(d0(30.0))
+    assert rec.outcome == "sensor_convention", rec.reason
+    assert rec.n_steps <= ExecutorConfig().self_check.steps

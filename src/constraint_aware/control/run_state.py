@@ -176,7 +176,9 @@ def begin_run(
         contact=ContactGuard(g.contact_force, g.lost_contact_force, g.lost_contact_steps),
         lead=LeadGuard.for_run(cfg, stiffness),
         prediction=ForcePrediction(stiffness, cfg.limits.force_limit),
-        self_check=SensorSelfCheck(cfg.self_check.steps, stiffness, normal, lag),
+        self_check=SensorSelfCheck(
+            cfg.self_check.steps, stiffness, normal, lag, values.deflection_model
+        ),
         health=SensorHealth.for_run(values.force_noise, values.deflection_model),
         dead_band=values.dead_band,
     )

@@ -21,7 +21,11 @@ force along it need not be the wrist spring's):
 
 The reading after a hold and the one after the hand starts again are transients the lag
 model does not describe: they enter the cosine test only (SETTLE_MOVES). Moves with too little
-in-plane force or deflection are not judged; with too few judged moves the check records
+in-plane force or deflection are not judged, nor, on a robot whose profile measured the
+deflection model's error (control.sensor_health.DeflectionModel), moves whose deflection implies
+no more force than that error, a + b |v|: there the lag credit tau v, large at speed, leaves a
+remainder whose direction the model does not know (a joint-impedance arm's Cartesian stiffness
+is not one k along every direction); with too few judged moves the check records
 "inconclusive" and lets the run go on. The constants' measured origins:
 docs/design/executor-guards.md.
 """
@@ -35,6 +39,7 @@ import numpy as np
 
 from constraint_aware.control.guards import HOLD_LENGTH
 from constraint_aware.control.lag import LagModel
+from constraint_aware.control.sensor_health import DeflectionModel
 from constraint_aware.geometry import FloatArray, in_plane, norm
 
 #: [N] only moves whose in-plane |F| is above the dead band and this are judged.
@@ -76,13 +81,15 @@ class SensorSelfCheck:
     """The self-check's state over one run's first `steps` moves.
 
     steps: moves judged (0: off); stiffness: [N/m] the arm's, or None; normal: (3,) unit
-    workplane normal, or None (3-D: the whole vectors are judged); lag: the run's lag model.
+    workplane normal, or None (3-D: the whole vectors are judged); lag: the run's lag model;
+    model: the robot profile's deflection model with its measured error, or None.
     """
 
     steps: int
     stiffness: float | None
     normal: FloatArray | None
     lag: LagModel
+    model: DeflectionModel | None = None
     along: list[float] = field(default_factory=list)  # F.d / |F| per settled move
     cosines: list[float] = field(default_factory=list)  # cos(F, deflection) per move
     confirm: list[float] = field(default_factory=list)  # the same with CONFIRM_LAG_SHARE of tau
@@ -145,6 +152,15 @@ class SensorSelfCheck:
             f"{counts}"
         )
 
+    def _beyond_model_error(self, deflection: float) -> bool:
+        """Whether an in-plane `deflection` [m] implies more force than the deflection model's
+        measured error at the hand's speed (always, without a model)."""
+        m = self.model
+        if m is None:
+            return True
+        bound = m.error + m.error_per_speed * norm(self.lag.velocity)
+        return m.stiffness * deflection > bound
+
     def _verdict(
         self,
         force: FloatArray,
@@ -163,7 +179,7 @@ class SensorSelfCheck:
             self.along.append(float(force @ direction) / magnitude)
         deflection = in_plane(self.lag.deflection(position, target), self.normal)
         size = norm(deflection)
-        if size > min_check_deflection(self.stiffness):
+        if size > min_check_deflection(self.stiffness) and self._beyond_model_error(size):
             self.cosines.append(float(force @ deflection) / (magnitude * size))
             if settled:
                 half = in_plane(
