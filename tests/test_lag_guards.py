@@ -287,6 +287,7 @@ def test_a_wrong_convention_is_caught_with_a_calibrated_deflection_model(sensor:
         stiffness=robot.k, tracking_time_constant=0.2, deflection_error=0.5,
         deflection_error_per_speed=5.0, force_noise=None,  # the guide's sensor is noise-free
     )  # fmt: skip
-    rec = Executor(robot, FixedDirection(), GOAL, profile=calibrated).run(d0(30.0))
+    executor = Executor(robot, FixedDirection(), GOAL, profile=calibrated)  # type: ignore[arg-type]
+    rec = executor.run(d0(30.0))
     assert rec.outcome == "sensor_convention", rec.reason
     assert rec.n_steps <= ExecutorConfig().self_check.steps
