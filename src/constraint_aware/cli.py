@@ -1310,7 +1310,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         )
     )
     for column in ("quantity", "value", "+-", "unit", "samples", "why not measured / from"):
-        table.add_column(column, justify="left" if column[0] in "qwu" else "right")
+        # the names whole on a narrow terminal: the explanations wrap instead
+        width = max(map(len, profile.quantities)) if column == "quantity" else None
+        table.add_column(column, justify="left" if column[0] in "qwu" else "right", min_width=width)
     for key, m in profile.quantities.items():
         shown = "-" if m.value is None else f"{m.value:.4g}"
         error = "-" if m.uncertainty is None else f"{m.uncertainty:.2g}"
