@@ -92,19 +92,10 @@ def measure(repeats: int) -> dict[str, Any]:
     return out
 
 
-PAPER_CONDITIONS = (
-    ("drawer-opening", 30.0),
-    ("drawer-opening", -30.0),
-    ("plate-sliding", -30.0),
-    ("pole-pulling", -30.0),
-    ("door-opening", 15.0),
-    ("handle-rotating", 15.0),
-)
-
-
 def step_times(repeats: int) -> list[float]:
     """[us] the CPU time of every `Executor.step` call over `repeats` passes of the paper's
     conditions (a first pass warms the caches)."""
+    from constraint_aware.bench.sweep import PAPER_OFFSETS  # in both trees
     from constraint_aware.control.executor import Executor
     from constraint_aware.control.simulate import RunSpec, run
 
@@ -123,8 +114,9 @@ def step_times(repeats: int) -> list[float]:
         for i in range(repeats + 1):
             if i == 1:
                 times.clear()
-            for task, offset in PAPER_CONDITIONS:
-                run(RunSpec(task=task, offset_deg=offset))
+            for task, offsets in PAPER_OFFSETS.items():
+                for offset in offsets:
+                    run(RunSpec(task=task, offset_deg=offset))
     finally:
         Executor.step = step  # type: ignore[method-assign]
     return times
