@@ -274,6 +274,10 @@ def test_the_self_check_leaves_a_deflection_within_the_calibrated_error_unjudged
     model = DeflectionModel(1260.0, 0.16, error=3.8, error_per_speed=38.0)
     why, check = _jaco_plate_check(model)
     assert why == "" and len(check.cosines) == 1 and check.cosines[0] > 0.7
+    assert check.within_error == 2
+    notes: list[str] = []
+    check.check(8, np.zeros(3), np.zeros(3), np.zeros(3), np.array([1.0, 0, 0]), 0.45, notes)
+    assert notes and "2 more moves' deflection within the calibrated model's error" in notes[0]
 
 
 @pytest.mark.parametrize("sensor", ["flipped", "rotated_90"])

@@ -93,6 +93,7 @@ class SensorSelfCheck:
     along: list[float] = field(default_factory=list)  # F.d / |F| per settled move
     cosines: list[float] = field(default_factory=list)  # cos(F, deflection) per move
     confirm: list[float] = field(default_factory=list)  # the same with CONFIRM_LAG_SHARE of tau
+    within_error: int = 0  # moves the cosine test left alone: within the model's error
     moves_since_hold: int = SETTLE_MOVES  # commands since the last hold (HOLD_LENGTH)
 
     def note_move(self, length: float) -> None:
@@ -140,6 +141,11 @@ class SensorSelfCheck:
             f"median F.d/|F| {along:.2f} ({len(self.along)} moves){skipped}, "
             f"cos(F, deflection) {cos:.2f} ({len(self.cosines)} moves){lag}"
         )
+        if self.within_error:
+            counts += (
+                f", {self.within_error} more moves' deflection within the calibrated model's "
+                f"error (not judged)"
+            )
         # a test that judged fewer than MIN_SAMPLES moves has said nothing
         judged = len(self.cosines) >= MIN_SAMPLES or (
             len(self.along) >= MIN_SAMPLES and not confirms
@@ -152,14 +158,16 @@ class SensorSelfCheck:
             f"{counts}"
         )
 
-    def _beyond_model_error(self, deflection: float) -> bool:
-        """Whether an in-plane `deflection` [m] implies more force than the deflection model's
-        measured error at the hand's speed (always, without a model)."""
+    def _within_model_error(self, deflection: float) -> bool:
+        """Whether an in-plane `deflection` [m] implies no more force than the deflection
+        model's measured error at the hand's speed (never, without a model); counted."""
         m = self.model
         if m is None:
-            return True
+            return False
         bound = m.error + m.error_per_speed * norm(self.lag.velocity)
-        return m.stiffness * deflection > bound
+        within = m.stiffness * deflection <= bound
+        self.within_error += within
+        return within
 
     def _verdict(
         self,
@@ -179,7 +187,7 @@ class SensorSelfCheck:
             self.along.append(float(force @ direction) / magnitude)
         deflection = in_plane(self.lag.deflection(position, target), self.normal)
         size = norm(deflection)
-        if size > min_check_deflection(self.stiffness) and self._beyond_model_error(size):
+        if size > min_check_deflection(self.stiffness) and not self._within_model_error(size):
             self.cosines.append(float(force @ deflection) / (magnitude * size))
             if settled:
                 half = in_plane(
