@@ -1,4 +1,5 @@
-"""`cap` subcommands: smoke tests (subprocess, tiny budgets) and the CLI's conventions."""
+"""`cap` subcommands: smoke tests (subprocess, tiny budgets) and the CLI's conventions
+(arguments refused before any work: `main` in this process, `cap_here`)."""
 
 from __future__ import annotations
 
@@ -22,6 +23,18 @@ def cap(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]
         cwd=cwd,
         timeout=600,
     )
+
+
+def cap_here(capsys: pytest.CaptureFixture[str], *args: str) -> subprocess.CompletedProcess[str]:
+    """`cap ARGS` in this process, for arguments refused before any work (no interpreter to
+    start): its exit code, stdout and stderr as the console script gives them."""
+    capsys.readouterr()
+    try:
+        code = main(list(args))
+    except SystemExit as exc:  # argparse: usage errors and --help
+        code = exc.code if isinstance(exc.code, int) else 1
+    out = capsys.readouterr()
+    return subprocess.CompletedProcess(list(args), code, out.out, out.err)
 
 
 def options_of(*argv: str) -> set[str]:
@@ -48,8 +61,8 @@ def test_version_from_package_metadata() -> None:
     assert out.stdout.strip() == f"cap {version('constraint-aware')}"
 
 
-def test_run_help_shows_defaults_and_choices() -> None:
-    out = cap("run", "--help")
+def test_run_help_shows_defaults_and_choices(capsys: pytest.CaptureFixture[str]) -> None:
+    out = cap_here(capsys, "run", "--help")
     assert out.returncode == 0
     text = " ".join(out.stdout.split())
     assert "{policy,policy-raw,fixed,projection,classical}" in text
@@ -91,16 +104,19 @@ def test_run_flags_reach_every_run_spec_field() -> None:
             assert "--" + f.name.replace("_", "-") in options, f.name
 
 
-def test_run_unknown_task_is_a_usage_error_on_stderr() -> None:
-    out = cap("run", "nosuchtask")
+def test_run_unknown_task_is_a_usage_error_on_stderr(capsys: pytest.CaptureFixture[str]) -> None:
+    out = cap_here(capsys, "run", "nosuchtask")
     assert out.returncode == 2
     assert "drawer-opening" in out.stderr and out.stdout == ""
 
 
-def test_markup_in_user_text_is_printed_verbatim(tmp_path: Path) -> None:
-    out = cap("run", "drawer[/]")
+def test_markup_in_user_text_is_printed_verbatim(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = cap_here(capsys, "run", "drawer[/]")
     assert out.returncode == 2 and "drawer[/]" in out.stderr and "Traceback" not in out.stderr
-    out = cap("eval", "--policy", str(tmp_path / "[bold]x[/].npz"))  # a CapError's message
+    # a CapError's message
+    out = cap_here(capsys, "eval", "--policy", str(tmp_path / "[bold]x[/].npz"))
     assert out.returncode == 2
     assert "[bold]x[/].npz" in out.stderr and "Traceback" not in out.stderr
 
@@ -125,9 +141,9 @@ def test_failed_run_exits_1_and_writes_strict_json(tmp_path: Path) -> None:
     ],
 )
 def test_output_suffixes_checked_before_the_run(
-    tmp_path: Path, flag: str, path: str, message: str
+    tmp_path: Path, flag: str, path: str, message: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    out = cap("run", "drawer-opening", "--json", str(tmp_path / "r.json"), flag, path)
+    out = cap_here(capsys, "run", "drawer-opening", "--json", str(tmp_path / "r.json"), flag, path)
     assert out.returncode == 2 and message in out.stderr
     assert not (tmp_path / "r.json").exists()  # a run would have written its record first
     assert "steps" not in out.stdout
@@ -320,8 +336,8 @@ def test_run_mp4_through_the_video_extra(tmp_path: Path) -> None:
     assert (tmp_path / "r.mp4").read_bytes()[4:8] == b"ftyp"
 
 
-def test_run_unknown_controller_lists_valid_names() -> None:
-    out = cap("run", "drawer-opening", "--controller", "pid")
+def test_run_unknown_controller_lists_valid_names(capsys: pytest.CaptureFixture[str]) -> None:
+    out = cap_here(capsys, "run", "drawer-opening", "--controller", "pid")
     assert out.returncode == 2
     assert "projection" in out.stderr
 
