@@ -419,7 +419,11 @@ def cap(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
-def test_cap_run_profile_and_strict_inputs(tmp_path: Path) -> None:
+def test_cap_run_profile_and_strict_inputs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from test_cli import cap_here
+
     good = profile(stiffness=1900.0).save(tmp_path / "hook.json")
     out = tmp_path / "rec.json"
     proc = cap("run", "drawer-opening", "--profile", str(good), "--json", str(out))
@@ -430,13 +434,16 @@ def test_cap_run_profile_and_strict_inputs(tmp_path: Path) -> None:
     assert any("the robot profile measured 1900 N/m" in n for n in rec["notes"])
     bad = tmp_path / "bad.json"
     bad.write_text(good.read_text().replace('"guide"', '""'))
-    proc = cap("run", "drawer-opening", "--profile", str(bad))
+    # refused before any work: checked in this process
+    proc = cap_here(capsys, "run", "drawer-opening", "--profile", str(bad))
     assert proc.returncode == 2 and "field 'robot'" in proc.stderr
-    proc = cap("run", "drawer-opening", "--robot", "hook-hand:period=0.2", "--profile", str(good))
+    proc = cap_here(
+        capsys, "run", "drawer-opening", "--robot", "hook-hand:period=0.2", "--profile", str(good)
+    )
     assert proc.returncode == 2 and "control_period_s" in proc.stderr
-    proc = cap("lfo", "demo.json", "--profile", str(good))
+    proc = cap_here(capsys, "lfo", "demo.json", "--profile", str(good))
     assert proc.returncode == 2 and "--profile without --execute" in proc.stderr
-    proc = cap("lfo", "demo.json", "--strict-inputs")
+    proc = cap_here(capsys, "lfo", "demo.json", "--strict-inputs")
     assert proc.returncode == 2 and "--strict-inputs without --execute" in proc.stderr
 
 
