@@ -41,6 +41,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 STEPS = 30
 ROBOTS = ("hook-hand", "jaco")
 DEFAULT_OUT = Path(__file__).parent / "results" / "realtime_vs_filing.json"
@@ -87,7 +89,7 @@ def measure(repeats: int) -> dict[str, Any]:
     out["executor_step"] = {
         "steps": len(steps),
         "cpu_us_median": statistics.median(steps),
-        "cpu_us_p99": _percentile(steps, 0.99),
+        "cpu_us_p99": float(np.percentile(steps, 99)),  # as benchmarks/executor_speed.py
     }
     return out
 
@@ -120,11 +122,6 @@ def step_times(repeats: int) -> list[float]:
     finally:
         Executor.step = step  # type: ignore[method-assign]
     return times
-
-
-def _percentile(values: list[float], q: float) -> float:
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
 
 
 def compare(trees: dict[str, str], rounds: int, repeats: int) -> dict[str, Any]:
