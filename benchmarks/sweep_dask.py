@@ -1,22 +1,25 @@
 """`cap bench --quick` on a local Dask cluster of 1 and 2 workers (and the local pool): speedup.
 
-    python benchmarks/sweep_dask.py [--workers 1,2] [--local]
+    python benchmarks/sweep_dask.py [--workers 1,2] [--rounds 3] [--local]
         [--out benchmarks/results/sweep_dask.json]
 
 For each n in `--workers`: a `distributed.LocalCluster` of n single-threaded worker
 processes without a dashboard (as `cap bench --scheduler local --workers n` starts) and
 `run_bench(quick=True, scheduler=<its address>)`, one after the other, each bench in a fresh
 Python process (as a `cap bench` run is), into temporary directories; with `--local` the same
-on the local process pool (`workers=n`, no scheduler). Reports each bench's wall time (from
-results.json), the CPU time of this process and of each Dask worker during the bench, the
-speedup of every run over the first one measured two ways: by wall time (the same machine, one
-after the other: the load average is recorded, and on a loaded machine the share of the CPUs,
-not their number, sets it) and by the CPU critical path (this process's CPU time plus the
-busiest worker's: the wall time on otherwise idle cores, each worker on its own); and whether
-every results.json is the first one's except for the wall times and the worker count (text of
-the canonical JSON, so NaN compares equal to NaN; where not, the differing paths). On the
-local cluster the rendering sections are the workers' tasks (their CPU is in the workers');
-on the local pool they run in a side process, whose CPU is in the children's.
+on the local process pool (`workers=n`, no scheduler). The whole set is repeated `--rounds`
+times, every other round in reverse order, because this machine's speed drifts by tens of
+percent within minutes: a speedup is a ratio of two benches of one round, and the figure is
+the median over rounds. Reports each bench's wall time (from results.json), the CPU time of
+this process and of each Dask worker during the bench, the speedup of every bench over its
+round's first kind measured two ways: by wall time (the load average is recorded, and on a
+loaded machine the share of the CPUs, not their number, sets it) and by the CPU critical path
+(this process's CPU time plus the busiest worker's: the wall time on otherwise idle cores,
+each worker on its own); and whether every results.json is the first one's except for the
+wall times and the worker count (text of the canonical JSON, so NaN compares equal to NaN;
+where not, the differing paths). On the local cluster the rendering sections are the
+workers' tasks (their CPU is in the workers'); on the local pool they run in a side process,
+whose CPU is in the children's.
 
 With `--scaling`, also the machine's own ceiling for the sweeps: the full bench's suite runs
 (`experiments.headline_specs`, 400 runs) on a process pool of 1 and then 2 workers, nothing
@@ -40,6 +43,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from distributed import Client, LocalCluster
 
 from constraint_aware.bench.experiments import BenchConfig, headline_specs
@@ -160,6 +164,7 @@ def main() -> None:
     parser.add_argument("--workers", default="1,2", help="worker counts, comma-separated")
     parser.add_argument("--local", action="store_true", help="also the local process pool")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    parser.add_argument("--rounds", type=int, default=3, help="repeats, interleaved (>= 1)")
     parser.add_argument("--scaling", action="store_true", help="also the sweeps alone")
     parser.add_argument("--single", help=argparse.SUPPRESS)  # the subprocess: "dask-2", ...
     args = parser.parse_args()
@@ -171,33 +176,47 @@ def main() -> None:
     counts = [int(n) for n in args.workers.split(",")]
     if min(counts) < 1:
         parser.error("--workers: counts must be >= 1")
+    if args.rounds < 1:
+        parser.error(f"--rounds: must be >= 1, got {args.rounds}")
     names = [f"dask-{n}" for n in counts] + ([f"pool-{n}" for n in counts] if args.local else [])
     runs = []
     with tempfile.TemporaryDirectory() as tmp:
-        for name in names:
-            out = Path(tmp) / f"{name}.json"
-            cmd = [sys.executable, __file__, "--single", name, "--out", str(out)]
-            subprocess.run(cmd, check=True)
-            runs.append(json.loads(out.read_text()))
+        for i in range(args.rounds):
+            for name in names if i % 2 == 0 else names[::-1]:
+                out = Path(tmp) / f"{name}-{i}.json"
+                cmd = [sys.executable, __file__, "--single", name, "--out", str(out)]
+                subprocess.run(cmd, check=True)
+                runs.append({"round": i, **json.loads(out.read_text())})
     first = runs[0]
     table = first["results"]["headline"]["table"]
+
+    def base(r: dict[str, Any]) -> dict[str, Any]:
+        """The bench of the first kind in `r`'s round."""
+        return next(b for b in runs if b["round"] == r["round"] and b["name"] == names[0])
+
+    benches = [
+        {
+            **{k: v for k, v in r.items() if k != "results"},
+            "speedup_over_first": base(r)["bench_wall_time_s"] / r["bench_wall_time_s"],
+            "cpu_critical_path_speedup_over_first": (
+                base(r)["cpu_critical_path_s"] / r["cpu_critical_path_s"]
+                if "cpu_critical_path_s" in r
+                else None
+            ),
+            "differences_from_first": differences(first["results"], r["results"]),
+        }
+        for r in runs
+    ]
     result = {
         "quick": True,
         "cpu_count": os.cpu_count(),
         "n_suite_runs": sum(c["n"] for row in table.values() for c in row.values()),
-        "benches": [
-            {
-                **{k: v for k, v in r.items() if k != "results"},
-                "speedup_over_first": first["bench_wall_time_s"] / r["bench_wall_time_s"],
-                "cpu_critical_path_speedup_over_first": (
-                    first["cpu_critical_path_s"] / r["cpu_critical_path_s"]
-                    if "cpu_critical_path_s" in r
-                    else None
-                ),
-                "differences_from_first": differences(first["results"], r["results"]),
-            }
-            for r in runs
-        ],
+        "rounds": args.rounds,
+        "speedup_median_over_rounds": {
+            name: float(np.median([b["speedup_over_first"] for b in benches if b["name"] == name]))
+            for name in names
+        },
+        "benches": benches,
     }
     result["identical_results_json_except_wall_time_and_workers"] = not any(
         b["differences_from_first"] for b in result["benches"]
