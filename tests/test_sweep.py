@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -110,18 +111,36 @@ def test_run_many_sizes_its_pool_by_default(
     assert sizes == [3]
 
 
-def test_dask_local_cluster_gives_the_local_pool_results(
-    specs: list[sweep.RunSpec], serial: list[dict[str, Any]]
-) -> None:
+@pytest.fixture(scope="module")
+def one_worker_cluster() -> Iterator[Any]:
     distributed = pytest.importorskip("distributed")
-    with (
-        distributed.LocalCluster(
-            n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0"
-        ) as cluster,
-        dask_executor(cluster.scheduler_address) as (executor, threads, local),
-    ):
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=True, dashboard_address=":0"
+    ) as cluster:
+        yield cluster
+
+
+def test_dask_local_cluster_gives_the_local_pool_results(
+    one_worker_cluster: Any, specs: list[sweep.RunSpec], serial: list[dict[str, Any]]
+) -> None:
+    with dask_executor(one_worker_cluster.scheduler_address) as (executor, threads, local):
         assert threads == 1 and local  # the cluster's one worker runs on this machine
         assert run_many(specs, executor=executor, quiet=True) == serial
+
+
+def _package_filters() -> list[str]:
+    return [getattr(f, "name", "?") for f in logging.getLogger("constraint_aware").filters]
+
+
+def test_a_worker_filter_holds_on_the_workers_for_the_block_only(one_worker_cluster: Any) -> None:
+    """The bench's once-per-message filter reaches Dask workers (else every run of a sweep
+    prints its missing-input warnings), and leaves a remote cluster as it found it."""
+    distributed = pytest.importorskip("distributed")
+    address = one_worker_cluster.scheduler_address
+    with dask_executor(address, worker_filter=logging.Filter("kept")) as (executor, _, _):
+        assert executor.submit(_package_filters).result() == ["kept"]
+    with distributed.Client(address) as client:
+        assert list(client.run(_package_filters).values()) == [[]]
 
 
 def test_unreachable_scheduler_is_a_clear_error() -> None:

@@ -326,7 +326,11 @@ def run_bench(
             ):
                 return _run_bench(out, cfg, loaded, policy, skipped, pool, side)
         with (
-            dask_executor(scheduler, local_workers=workers) as (executor, threads, local),
+            dask_executor(scheduler, local_workers=workers, worker_filter=_OncePerMessage()) as (
+                executor,
+                threads,
+                local,
+            ),
             use_executor(executor),
         ):
             cfg = dataclasses.replace(cfg, workers=threads)

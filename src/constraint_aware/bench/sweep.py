@@ -17,6 +17,7 @@ import contextlib
 import copy
 import dataclasses
 import functools
+import logging
 import os
 import socket
 from collections.abc import Callable, Iterable, Iterator, Sequence
@@ -28,6 +29,7 @@ import numpy as np
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from constraint_aware.control.run_inputs import LOGGER as PACKAGE_LOGGER
 from constraint_aware.control.simulate import RunSpec, run
 from constraint_aware.errors import CapError
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -125,7 +127,10 @@ LOCAL_SCHEDULER = "local"
 
 @contextlib.contextmanager
 def dask_executor(
-    address: str, timeout_s: float = 30.0, local_workers: int | None = None
+    address: str,
+    timeout_s: float = 30.0,
+    local_workers: int | None = None,
+    worker_filter: logging.Filter | None = None,
 ) -> Iterator[tuple[Executor, int, bool]]:
     """(executor, total worker threads, whether every worker runs on this machine) of the Dask
     cluster whose scheduler is at `address`.
@@ -133,9 +138,11 @@ def dask_executor(
     `address` "local" (LOCAL_SCHEDULER) starts a `distributed.LocalCluster` for the block:
     `local_workers` single-threaded worker processes (default: the available CPUs). Needs the
     `cluster` extra (`distributed`); a remote cluster's workers need this package installed.
+    `worker_filter`: a copy of it filters the "constraint_aware" logger on every worker,
+    joining ones included, for the block only (a worker plugin, removed at the end).
     """
     try:
-        from distributed import Client, LocalCluster
+        from distributed import Client, LocalCluster, WorkerPlugin
     except ImportError as exc:
         raise CapError(
             "scheduler: running on a Dask cluster needs 'distributed': "
@@ -166,6 +173,22 @@ def dask_executor(
             raise CapError(
                 f"scheduler: no worker joined the cluster at {address!r} in {timeout_s} s"
             ) from exc
+        if worker_filter is not None:
+
+            class LoggerFilter(WorkerPlugin):  # pickled by value: a remote worker needs no file
+                name = "constraint_aware-logger-filter"
+
+                def __init__(self, kept: logging.Filter) -> None:
+                    self.kept, self.logger = kept, PACKAGE_LOGGER.name
+
+                def setup(self, worker: Any) -> None:
+                    logging.getLogger(self.logger).addFilter(self.kept)
+
+                def teardown(self, worker: Any) -> None:
+                    logging.getLogger(self.logger).removeFilter(self.kept)
+
+            client.register_plugin(LoggerFilter(worker_filter))
+            stack.callback(client.unregister_worker_plugin, LoggerFilter.name)
         threads = sum(client.nthreads().values())
         here = socket.gethostname()
         on_this_machine = all(h == here for h in client.run(socket.gethostname).values())
