@@ -325,14 +325,9 @@ def run_bench(
                 _side_process(cfg.workers or available_cpus()) as side,
             ):
                 return _run_bench(out, cfg, loaded, policy, skipped, pool, side)
-        with (
-            dask_executor(scheduler, local_workers=workers, worker_filter=_OncePerMessage()) as (
-                executor,
-                threads,
-                local,
-            ),
-            use_executor(executor),
-        ):
+        # each worker says each warning once, as the pool's processes do
+        cluster = dask_executor(scheduler, local_workers=workers, worker_filter=_OncePerMessage())
+        with cluster as (executor, threads, local), use_executor(executor):
             cfg = dataclasses.replace(cfg, workers=threads)
             if local:
                 # workers on this machine write to its files: the rendering sections and the

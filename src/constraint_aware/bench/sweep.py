@@ -175,7 +175,7 @@ def dask_executor(
             ) from exc
         if worker_filter is not None:
 
-            class LoggerFilter(WorkerPlugin):  # pickled by value: a remote worker needs no file
+            class LoggerFilter(WorkerPlugin):  # here: distributed is imported only in this function
                 name = "constraint_aware-logger-filter"
 
                 def __init__(self, kept: logging.Filter) -> None:
