@@ -164,8 +164,7 @@ class SensorSelfCheck:
         m = self.model
         if m is None:
             return False
-        bound = m.error + m.error_per_speed * norm(self.lag.velocity)
-        within = m.stiffness * deflection <= bound
+        within = m.stiffness * deflection <= m.error_at(self.lag.velocity)
         self.within_error += within
         return within
 

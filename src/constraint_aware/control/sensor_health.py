@@ -106,6 +106,11 @@ class DeflectionModel:
     error: float
     error_per_speed: float
 
+    def error_at(self, velocity: FloatArray) -> float:
+        """[N] the model's measured error a + b |v| at the hand's velocity `velocity` (3,)
+        [m/s]."""
+        return self.error + self.error_per_speed * norm(velocity)
+
     def implied(self, lag: LagModel, position: FloatArray, target: FloatArray) -> float:
         """[N] k x |lagged deflection| of the hand at `position` (3,) [m] from `target` (3,)
         [m], with the run's preload and velocity (`lag`) and this model's tau."""
@@ -170,7 +175,7 @@ class SensorHealth:
             self.short = 0
             return None
         implied = m.implied(lag, position, target)
-        bound = m.error + m.error_per_speed * norm(velocity)
+        bound = m.error_at(velocity)
         if implied - magnitude <= bound:
             self.short = 0
             return None
