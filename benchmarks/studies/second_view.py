@@ -28,21 +28,11 @@ from pathlib import Path
 from typing import Any
 
 import mujoco
-import numpy as np
 
 from constraint_aware.bench.provenance import write_results
-from constraint_aware.lfo.grasp_data import (
-    SEEN_SHARE,
-    _demonstrated_skill,
-    add_distractors,
-    contact_label,
-    handle_visibility,
-    sized_placement,
-)
-from constraint_aware.lfo.perception import head_camera, nominal_frame
-from constraint_aware.lfo.synthetic import HandOffset
+from constraint_aware.lfo.grasp_data import SEEN_SHARE, draw_scene, handle_visibility, scene_rngs
+from constraint_aware.lfo.perception import head_camera
 from constraint_aware.sim.camera import CameraMount, look_at
-from constraint_aware.sim.scene import scene_spec
 from constraint_aware.sim.tasks import KINDS
 
 ROBOTS = ("hook-hand", "jaco")
@@ -53,34 +43,28 @@ def scene_views(
     kind: str, seed: int, index: int, standoffs: list[float]
 ) -> dict[str, float] | None:
     """Contact visibility of scene `index` of `kind` from each head camera and each standoff;
-    None when none of the draws gives a usable demonstration (as `generate` skips them)."""
-    k = KINDS.index(kind)
-    for attempt in range(20):
-        # the same draws, in the same order, as grasp_data.scene_samples up to its distractors
-        rng = np.random.default_rng([seed, k, index, attempt])
-        place = sized_placement(kind, rng, True)
-        skill = _demonstrated_skill(place, rng, HandOffset())
-        if skill is None:
+    None when none of its draws gives a usable demonstration (as `generate` skips them)."""
+    for rng in scene_rngs(seed, kind, index):  # the draws generate() makes for this scene
+        scene = draw_scene(kind, rng)
+        if scene is None:
             continue
-        shape, frame0 = nominal_frame(skill)
-        spec = scene_spec(place.task)
-        truth0, approach0 = contact_label(place.task, shape, frame0.origin)
-        add_distractors(spec, truth0, approach0, rng)
-        model = spec.compile()
+        model = scene.spec.compile()
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         out = {
-            f"head {robot}": handle_visibility(model, data, head_camera(robot, skill), truth0)
+            f"head {robot}": handle_visibility(
+                model, data, head_camera(robot, scene.skill), scene.truth
+            )
             for robot in ROBOTS
         }
-        approach = frame0.rotation[:, 2]  # the demonstrated approach, into the handle
+        origin, approach = scene.frame.origin, scene.frame.rotation[:, 2]  # the demonstrated
         for standoff in standoffs:
             mount = CameraMount(
                 "second_view",
-                look_at(frame0.origin - standoff * approach, frame0.origin),
-                head_camera(ROBOTS[0], skill).intrinsics,
+                look_at(origin - standoff * approach, origin),
+                head_camera(ROBOTS[0], scene.skill).intrinsics,
             )
-            out[f"approach {standoff:g} m"] = handle_visibility(model, data, mount, truth0)
+            out[f"approach {standoff:g} m"] = handle_visibility(model, data, mount, scene.truth)
         return out
     return None
 

@@ -16,7 +16,7 @@ same image. Labels are the object's truth: the contact point of its handle shape
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -269,6 +269,56 @@ def _demonstrated_skill(
     return skill
 
 
+@dataclass(frozen=True)
+class DrawnScene:
+    """One random scene before its cameras: the placement, its offset demonstration's skill,
+    the handle shape and nominal crop frame the demonstration gives, the scene's spec (with
+    its distractors), and the truth at the frame's origin: contact point (3,) [m] and approach
+    (3,) unit, for scoring only."""
+
+    place: Placement
+    skill: SkillParameters
+    shape: str
+    frame: GraspFrame
+    spec: mujoco.MjSpec
+    truth: FloatArray
+    approach: FloatArray
+
+
+def draw_scene(
+    kind: str,
+    rng: np.random.Generator,
+    sizes: bool = True,
+    distractors: bool = True,
+    offset: HandOffset | None = None,
+) -> DrawnScene | None:
+    """A random scene of `kind` drawn from `rng` (module docstring), None when its
+    demonstration gives no usable skill."""
+    place = sized_placement(kind, rng, sizes)
+    skill = _demonstrated_skill(place, rng, offset or HandOffset())
+    if skill is None:
+        return None
+    shape, frame = nominal_frame(skill)
+    spec = scene_spec(place.task)
+    truth, approach = contact_label(place.task, shape, frame.origin)
+    if distractors:
+        add_distractors(spec, truth, approach, rng)
+    return DrawnScene(place, skill, shape, frame, spec, truth, approach)
+
+
+#: Draws `generate` tries for one scene before it gives up on it.
+SCENE_ATTEMPTS = 20
+
+
+def scene_rngs(seed: int, kind: str, index: int) -> Iterator[np.random.Generator]:
+    """The generators of scene `index` of `kind` (its index in sim.tasks.KINDS, so that a
+    subset of kinds gives the same scenes), one per attempt: np.random.default_rng([seed, k,
+    index, attempt])."""
+    k = KINDS.index(kind)
+    for attempt in range(SCENE_ATTEMPTS):
+        yield np.random.default_rng([seed, k, index, attempt])
+
+
 def scene_samples(
     kind: str,
     rng: np.random.Generator,
@@ -282,18 +332,13 @@ def scene_samples(
     """The crops of one random scene of `kind` (module docstring), None when its
     demonstration gives no usable skill."""
     offset = offset or HandOffset()
-    place = sized_placement(kind, rng, sizes)
-    skill = _demonstrated_skill(place, rng, offset)
-    if skill is None:
+    scene = draw_scene(kind, rng, sizes, distractors, offset)
+    if scene is None:
         return None
-    shape, frame0 = nominal_frame(skill)
-    spec = scene_spec(place.task)
-    truth0, approach0 = contact_label(place.task, shape, frame0.origin)
-    if distractors:
-        add_distractors(spec, truth0, approach0, rng)
+    frame0, spec = scene.frame, scene.spec
     mounts: list[CameraMount] = []
     for robot in robots:
-        mount = head_camera(robot, skill)
+        mount = head_camera(robot, scene.skill)
         mount = dataclasses.replace(mount, name=f"{mount.name}_{robot}")
         add_camera(spec, mount)
         mounts.append(mount)
@@ -302,7 +347,8 @@ def scene_samples(
     mujoco.mj_forward(model, data)
     rows: dict[str, list[Any]] = {f.name: [] for f in dataclasses.fields(GraspDataset)}
     for robot, mount in zip(robots, mounts, strict=True):
-        origins = [frame0.origin] + [truth0 + offset.draw(rng) for _ in range(crops_per_view - 1)]
+        drawn = [scene.truth + offset.draw(rng) for _ in range(crops_per_view - 1)]
+        origins = [frame0.origin, *drawn]
         corners = np.concatenate([crop_corners(GraspFrame(o, frame0.rotation)) for o in origins])
         roi = region_of_interest(mount, corners)
         with DepthCamera(model, mount, noise) as camera:
@@ -311,9 +357,9 @@ def scene_samples(
         visible = handle_visibility(model, data, mount)
         for origin in origins:
             frame = GraspFrame(np.asarray(origin), frame0.rotation)
-            truth, approach = contact_label(place.task, shape, frame.origin)
+            truth, approach = contact_label(scene.place.task, scene.shape, frame.origin)
             rows["heights"].append(depth_crop(points, frame).astype(np.float32))
-            rows["shapes"].append(HANDLE_SHAPES.index(shape))
+            rows["shapes"].append(HANDLE_SHAPES.index(scene.shape))
             rows["points"].append(frame.to_local(truth[None])[0])
             rows["approaches"].append(frame.rotation.T @ approach)
             rows["kinds"].append(kind)
@@ -337,9 +383,8 @@ def generate(
     noise: DepthNoise | None = None,
 ) -> GraspDataset:
     """`scenes_per_kind` usable scenes of each kind (`scene_samples`, the sensor's `noise`:
-    sim.camera's default when None), seeded: scene i of kind k (its index in sim.tasks.KINDS,
-    so that a subset of kinds gives the same scenes) draws from
-    np.random.default_rng([seed, k, i, attempt])."""
+    sim.camera's default when None), seeded: scene i of a kind draws from `scene_rngs(seed,
+    kind, i)` until one gives a usable demonstration."""
     if scenes_per_kind < 1:
         raise InvalidInputError(f"scenes_per_kind: {scenes_per_kind}; valid: >= 1")
     if crops_per_view < 1:
@@ -350,10 +395,8 @@ def generate(
     for kind in kinds:
         if kind not in KINDS:
             raise InvalidInputError(f"kinds: {kind!r}; valid: {', '.join(KINDS)}")
-        k = KINDS.index(kind)
         for i in range(scenes_per_kind):
-            for attempt in range(20):
-                rng = np.random.default_rng([seed, k, i, attempt])
+            for rng in scene_rngs(seed, kind, i):
                 part = scene_samples(
                     kind, rng, robots, crops_per_view, sizes, distractors, noise=noise
                 )
