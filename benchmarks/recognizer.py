@@ -115,10 +115,8 @@ def main() -> None:
     tables = {name: s.table() for name, s in scores.items()}
     seen = np.asarray(data.contact_visible) >= SEEN_SHARE  # the truth, for scoring only
     seen_tables = {f"{name}, handle seen": s.subset(seen).table() for name, s in scores.items()}
-    seen_share = {
-        kind: float(seen[data.kinds == kind].mean()) for kind in dict.fromkeys(data.kinds.tolist())
-    }
     kinds = list(dict.fromkeys(data.kinds.tolist()))
+    seen_share = {kind: float(seen[data.kinds == kind].mean()) for kind in kinds}
     # what the methods start from, in the methods' table (the same percentiles)
     start_from = demonstration_scores(data).table()
     results = {
