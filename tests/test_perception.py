@@ -31,10 +31,12 @@ from constraint_aware.sim.camera import (
     NO_NOISE,
     CameraIntrinsics,
     CameraMount,
+    CameraPose,
     DepthCamera,
     DepthImage,
     DepthNoise,
     add_camera,
+    add_tool_camera,
     apply_noise,
     backproject,
     look_at,
@@ -278,3 +280,71 @@ def test_offset_demo_moves_the_tracked_point_rigidly_and_perception_restores_the
     draws = np.array([HandOffset().draw(np.random.default_rng(i)) for i in range(400)])
     assert np.percentile(np.linalg.norm(draws, axis=1), 99) < 0.05 + 4 * 0.01
     assert np.max(np.linalg.norm(draws, axis=1)) > 0.04
+
+
+# --- a camera on the hand --------------------------------------------------------------------
+def _hand_on_a_slide() -> tuple[mujoco.MjModel, CameraMount]:
+    """A 'hand' (a box on a slide joint along x, a tool-point site turned about x) in front of
+    a wall at z = 1, with a camera mounted at the site."""
+    spec = mujoco.MjSpec()
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=[2.0, 2.0, 0.01], pos=[0, 0, 1.0])
+    hand = spec.worldbody.add_body(name="hand")
+    hand.add_joint(name="slide", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1.0, 0.0, 0.0])
+    hand.add_geom(name="palm", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.03, 0.03, 0.01],
+                  pos=[0.0, 0.0, 0.3])  # fmt: skip
+    hand.add_site(name="tool", pos=[0.0, 0.0, 0.2], quat=[1.0, 0.0, 0.0, 0.0])
+    mount = CameraMount("wrist", CameraPose(np.array([0.0, 0.0, -0.1]), np.eye(3)), SMALL)
+    add_tool_camera(spec, mount, "tool")
+    return spec.compile(), mount
+
+
+def test_a_camera_on_the_hand_moves_with_it_and_does_not_see_the_hand() -> None:
+    from constraint_aware.sim.camera import body_tree_geoms
+
+    model, mount = _hand_on_a_slide()
+    data = mujoco.MjData(model)
+    data.qpos[0] = 0.25
+    mujoco.mj_forward(model, data)
+    with DepthCamera(model, mount, NO_NOISE) as camera:
+        seen = camera.capture(data, np.random.default_rng(0))
+    # the pose is where the hand is now: the site (0.25, 0, 0.2) and 0.1 m back along its z
+    assert np.allclose(seen.pose.position, [0.25, 0.0, 0.1], atol=1e-9)
+    assert np.allclose(seen.pose.rotation, np.eye(3), atol=1e-9)
+    centre = seen.depth[SMALL.height // 2, SMALL.width // 2]
+    assert centre == pytest.approx(0.19, abs=1e-3)  # the palm's face, 0.19 m ahead
+    own = body_tree_geoms(model, "hand")
+    assert own == (model.geom("palm").id,)
+    with DepthCamera(model, mount, NO_NOISE, own_geoms=own) as camera:
+        filtered = camera.capture(data, np.random.default_rng(0))
+    palm = np.isclose(seen.depth, 0.19, atol=1e-3)
+    assert palm.sum() > 50 and np.all(np.isnan(filtered.depth[palm]))  # no return there
+    wall = ~palm & np.isfinite(seen.depth)
+    assert np.allclose(filtered.depth[wall], seen.depth[wall])  # the rest as it was
+    assert np.allclose(filtered.points()[:, 2], 0.99, atol=1e-3)  # only the wall's face
+
+
+def test_a_camera_on_an_unknown_body_or_site_names_the_valid_ones() -> None:
+    from constraint_aware.errors import UnknownNameError
+
+    spec = mujoco.MjSpec()
+    spec.worldbody.add_body(name="arm").add_site(name="tool")
+    mount = CameraMount("c", CameraPose(np.zeros(3), np.eye(3)), SMALL)
+    with pytest.raises(UnknownNameError, match=r"valid names: .*arm"):
+        add_camera(spec, mount, body="wrist")
+    with pytest.raises(UnknownNameError, match="valid names: tool"):
+        add_tool_camera(spec, mount, "tcp")
+
+
+def test_the_look_pose_puts_the_wrist_camera_on_the_approach() -> None:
+    from scipy.spatial.transform import Rotation
+
+    from constraint_aware.lfo.perception import WRIST_CAMERAS
+
+    point = np.array([0.6, -0.1, 0.9])
+    orientation = Rotation.from_euler("xyz", [0.3, -1.1, 0.4])
+    for camera in WRIST_CAMERAS.values():
+        tool = camera.look_pose(point, orientation)
+        r = orientation.as_matrix()
+        eye = tool.position + r @ np.asarray(camera.position)
+        assert np.allclose(eye, point - camera.standoff * r[:, 2])
+        assert tool.orientation.approx_equal(orientation)

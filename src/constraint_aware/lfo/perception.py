@@ -17,6 +17,7 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from constraint_aware.errors import UnknownNameError
 from constraint_aware.geometry import FloatArray, unit
@@ -31,7 +32,14 @@ from constraint_aware.recognizer import (
     depth_crop,
     handle_shape,
 )
-from constraint_aware.sim.camera import CameraIntrinsics, CameraMount, DepthImage, look_at
+from constraint_aware.sim.camera import (
+    CameraIntrinsics,
+    CameraMount,
+    CameraPose,
+    DepthImage,
+    look_at,
+)
+from constraint_aware.spatial import Pose
 
 HORIZONTAL = 0.3  # a direction's horizontal part longer than this fixes "in front"
 
@@ -105,6 +113,48 @@ def head_camera(robot: str, skill: SkillParameters) -> CameraMount:
     return CameraMount(HEAD_CAMERA_NAME, look_at(position, target), spec.intrinsics)
 
 
+@dataclass(frozen=True)
+class WristCamera:
+    """A robot's wrist camera: at `position` (3,) [m] in the tool frame (z the approach), its
+    optical axis along the tool's z and image x along the tool's x; it looks from `standoff`
+    [m] back from the perceived contact point, on the approach line (the hand then aside of
+    it, out of the view's centre)."""
+
+    position: tuple[float, float, float]
+    standoff: float
+    intrinsics: CameraIntrinsics
+
+    def mount(self) -> CameraMount:
+        """The camera in the tool frame (for composing it onto the robot's hand)."""
+        return CameraMount(
+            WRIST_CAMERA_NAME, CameraPose(np.asarray(self.position), np.eye(3)), self.intrinsics
+        )
+
+    def look_pose(self, point: FloatArray, orientation: Rotation) -> Pose:
+        """The tool pose at `orientation` (its z the approach) from which the camera looks at
+        `point` (3,) [m] along the approach from `standoff`."""
+        rotation = orientation.as_matrix()
+        eye = np.asarray(point, dtype=float) - self.standoff * rotation[:, 2]
+        return Pose(eye - rotation @ np.asarray(self.position), orientation)
+
+
+#: Each robot's wrist camera (a RealSense-like depth stream on a bracket 8 cm off the hand's
+#: axis, 10 cm behind the tool point: the fingers stay below its range and off its centre).
+WRIST_CAMERAS: dict[str, WristCamera] = {
+    "hook-hand": WristCamera((0.08, 0.0, -0.10), 0.30, CameraIntrinsics(640, 480, 58.0)),
+    "jaco": WristCamera((0.08, 0.0, -0.10), 0.30, CameraIntrinsics(640, 480, 58.0)),
+}
+WRIST_CAMERA_NAME = "wrist_camera"
+
+
+def wrist_camera(robot: str) -> WristCamera:
+    """The robot's wrist camera (`WRIST_CAMERAS`, by embodiment name)."""
+    name = robot.partition(":")[0]
+    if name not in WRIST_CAMERAS:
+        raise UnknownNameError("robot with a wrist camera", name, list(WRIST_CAMERAS))
+    return WRIST_CAMERAS[name]
+
+
 def crop_corners(frame: GraspFrame) -> FloatArray:
     """(8, 3) [m] world corners of the crop's box (for a camera's region of interest)."""
     half = 0.5 * CROP_SIZE
@@ -135,6 +185,18 @@ def perceive(skill: SkillParameters, image: DepthImage, recognizer: Recognizer) 
     shape, frame = nominal_frame(skill)
     height = depth_crop(image.points(), frame)
     return Perception(shape, frame, height, recognizer.recognize(height, frame, shape))
+
+
+def perceive_again(
+    first: Perception, images: list[DepthImage], recognizer: Recognizer
+) -> Perception:
+    """The second look: the points of `images` (the head camera's and the wrist camera's from
+    the look pose) in one crop around the first recognition's contact point, recognized
+    again. Each view fills what the other hides; the nearer one's points are the finer."""
+    frame = GraspFrame(np.asarray(first.recognition.contact_point), first.frame.rotation)
+    points = np.concatenate([image.points() for image in images])
+    height = depth_crop(points, frame)
+    return Perception(first.shape, frame, height, recognizer.recognize(height, frame, first.shape))
 
 
 def corrected_skill(skill: SkillParameters, recognition: Recognition) -> SkillParameters:

@@ -40,7 +40,14 @@ import mujoco
 import numpy as np
 from numpy.typing import NDArray
 
-from constraint_aware.errors import CapError, ConfigError, check_int, check_number, check_vector
+from constraint_aware.errors import (
+    CapError,
+    ConfigError,
+    UnknownNameError,
+    check_int,
+    check_number,
+    check_vector,
+)
 from constraint_aware.geometry import FloatArray, unit
 from constraint_aware.sim import render
 
@@ -128,13 +135,24 @@ class CameraMount:
     intrinsics: CameraIntrinsics = field(default_factory=CameraIntrinsics)
 
 
-def add_camera(spec: mujoco.MjSpec, mount: CameraMount) -> None:
-    """Compose `mount` into a scene's spec as a fixed world camera (and make the offscreen
-    buffer large enough for its image)."""
+def add_camera(spec: mujoco.MjSpec, mount: CameraMount, body: str | None = None) -> None:
+    """Compose `mount` into a scene's spec (and make the offscreen buffer large enough for its
+    image): a fixed world camera, or with `body` (a body's name) one that moves with that
+    body, `mount.pose` then given in the body's frame (a wrist camera).
+
+    Raises:
+        UnknownNameError: when the spec has no body `body`.
+    """
     quat = np.zeros(4)
     mj_rot = mount.pose.rotation @ _CV_TO_MJ
     mujoco.mju_mat2Quat(quat, np.ascontiguousarray(mj_rot).reshape(9))
-    spec.worldbody.add_camera(
+    parent = spec.worldbody
+    if body is not None:
+        parent = spec.body(body)
+        if parent is None:
+            names = [b.name for b in spec.bodies]
+            raise UnknownNameError("body to mount the camera on", body, names)
+    parent.add_camera(
         name=mount.name,
         pos=[float(v) for v in mount.pose.position],
         quat=[float(v) for v in quat],
@@ -143,6 +161,33 @@ def add_camera(spec: mujoco.MjSpec, mount: CameraMount) -> None:
     glob = spec.visual.global_
     glob.offwidth = max(glob.offwidth, mount.intrinsics.width)
     glob.offheight = max(glob.offheight, mount.intrinsics.height)
+
+
+def add_tool_camera(spec: mujoco.MjSpec, mount: CameraMount, site: str) -> None:
+    """Compose `mount`, its pose given in the frame of the site `site` (a robot's tool
+    point), onto the body that carries the site: a camera that moves with the hand.
+
+    Raises:
+        UnknownNameError: when the spec has no site `site`.
+    """
+    found = spec.site(site)
+    if found is None:
+        raise UnknownNameError("site to mount the camera at", site, [s.name for s in spec.sites])
+    rotation = np.zeros(9)
+    mujoco.mju_quat2Mat(rotation, np.asarray(found.quat, dtype=float))
+    at_site = rotation.reshape(3, 3)
+    pose = CameraPose(
+        np.asarray(found.pos, dtype=float) + at_site @ np.asarray(mount.pose.position),
+        at_site @ np.asarray(mount.pose.rotation),
+    )
+    add_camera(spec, CameraMount(mount.name, pose, mount.intrinsics), body=found.parent.name)
+
+
+def body_tree_geoms(model: mujoco.MjModel, body: str) -> tuple[int, ...]:
+    """The ids of every geom of the tree (the bodies under the same child of the world) that
+    holds `body`: a robot's own geoms, from one of its bodies."""
+    root = int(model.body_rootid[model.body(body).id])
+    return tuple(int(g) for g in np.flatnonzero(model.body_rootid[model.geom_bodyid] == root))
 
 
 @dataclass(frozen=True)
@@ -340,17 +385,36 @@ class _EglDepthRenderer(render._EglRenderer):
         # the depth map mujoco.Renderer reads (and `_linear_depth` converts): 0 at the far plane
         self._context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
 
-    def depth(self) -> FloatArray:
+    def depth(self, geoms: bool = False) -> tuple[FloatArray, NDArray[np.int32] | None]:
+        """(H, W) [m] the depth and, with `geoms`, (H, W) the id of the geom each pixel shows
+        (-1: none)."""
         self._gl.make_current()
         # segmentation mode draws flat geometry only (no lighting, shadows or reflections):
-        # the depth buffer then holds the surfaces alone, as mujoco.Renderer reads it
+        # the depth buffer then holds the surfaces alone, as mujoco.Renderer reads it; each
+        # geom's colour is its segment id, which `geoms` reads back
         self._scene.flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = True
         self._scene.flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = True
         mujoco.mjr_render(self._rect, self._scene, self._context)
         h, w = self._rgb.shape[:2]
         buffer = np.empty((h, w), dtype=np.float32)
-        mujoco.mjr_readPixels(None, buffer, self._rect, self._context)
-        return _linear_depth(self._model, np.flipud(buffer))
+        mujoco.mjr_readPixels(self._rgb if geoms else None, buffer, self._rect, self._context)
+        depth = _linear_depth(self._model, np.flipud(buffer))
+        if not geoms:
+            return depth, None
+        return depth, _segment_geoms(self._scene, np.flipud(self._rgb))
+
+
+def _segment_geoms(scene: mujoco.MjvScene, rgb: NDArray[np.uint8]) -> NDArray[np.int32]:
+    """(H, W) the model geom id of each pixel of a segmentation rendering (-1: none or not a
+    geom), decoded as mujoco.Renderer decodes its segmentation images."""
+    c = rgb.astype(np.int64)
+    seg = c[..., 0] + c[..., 1] * 256 + c[..., 2] * 65536  # segment id + 1, 0: background
+    lookup = np.full(scene.ngeom + 1, -1, dtype=np.int32)
+    for g in scene.geoms[: scene.ngeom]:
+        if g.segid >= 0 and g.objtype == int(mujoco.mjtObj.mjOBJ_GEOM):
+            lookup[g.segid + 1] = g.objid
+    seg[(seg < 0) | (seg > scene.ngeom)] = 0
+    return np.asarray(lookup[seg], dtype=np.int32)
 
 
 def _linear_depth(model: mujoco.MjModel, buffer: FloatArray) -> FloatArray:
@@ -368,12 +432,21 @@ def _linear_depth(model: mujoco.MjModel, buffer: FloatArray) -> FloatArray:
 class DepthCamera:
     """Renders a scene camera's depth images (a model camera named `name`, see `add_camera`).
 
-    Only geoms show (no sites, no frames), as a real sensor sees them. Call `close()` when
-    done (or use it as a context manager): it owns an OpenGL context.
+    Only geoms show (no sites, no frames), as a real sensor sees them. A camera mounted on a
+    body (a wrist camera) takes its pose from the state it renders; a world camera's is
+    `mount.pose`. `own_geoms`: geom ids of the robot that carries the camera; its pixels give
+    no return (a self filter: the robot knows its own shape and where it is), so that the
+    hand's fingers in view are never taken for the object; they still hide what is behind
+    them. Call `close()` when done (or use it as a context manager): it owns an OpenGL
+    context.
     """
 
     def __init__(
-        self, model: mujoco.MjModel, mount: CameraMount, noise: DepthNoise | None = None
+        self,
+        model: mujoco.MjModel,
+        mount: CameraMount,
+        noise: DepthNoise | None = None,
+        own_geoms: tuple[int, ...] = (),
     ) -> None:
         try:
             self._id = model.camera(mount.name).id
@@ -384,6 +457,8 @@ class DepthCamera:
         self.model = model
         self.mount = mount
         self.noise = DepthNoise() if noise is None else noise
+        self.own_geoms = np.asarray(own_geoms, dtype=np.int32)
+        self._on_body = int(model.cam_bodyid[self._id]) != 0
         w, h = mount.intrinsics.width, mount.intrinsics.height
         self._option = mujoco.MjvOption()
         self._option.sitegroup[:] = 0  # sites are markers, not surfaces
@@ -418,15 +493,37 @@ class DepthCamera:
         self._camera.fixedcamid = self._id
 
     def true_depth(self, data: mujoco.MjData) -> FloatArray:
-        """(H, W) [m] the rendered depth without sensor error (beyond the far plane: NaN)."""
+        """(H, W) [m] the rendered depth without sensor error (beyond the far plane and on
+        `own_geoms`: NaN)."""
+        own = self.own_geoms.size > 0
+        geoms: NDArray[np.int32] | None = None
         if self._egl:
             self._renderer.update_scene(data, self._camera)
-            depth = self._renderer.depth()
+            depth, geoms = self._renderer.depth(geoms=own)
         else:
             self._renderer.update_scene(data, self._camera, scene_option=self._option)
             depth = np.asarray(self._renderer.render(), dtype=float)
+            if own:
+                self._renderer.disable_depth_rendering()
+                self._renderer.enable_segmentation_rendering()
+                try:
+                    geoms = np.asarray(self._renderer.render()[..., 0], dtype=np.int32)
+                finally:
+                    self._renderer.disable_segmentation_rendering()
+                    self._renderer.enable_depth_rendering()
         far = self.model.vis.map.zfar * self.model.stat.extent
-        return np.where(depth < 0.999 * far, depth, np.nan)
+        depth = np.where(depth < 0.999 * far, depth, np.nan)
+        if geoms is not None:
+            depth[np.isin(geoms, self.own_geoms)] = np.nan
+        return np.asarray(depth)
+
+    def pose(self, data: mujoco.MjData) -> CameraPose:
+        """The camera's pose at `data`'s state: `mount.pose` for a world camera, the body's
+        present pose composed with it for a camera on a body."""
+        if not self._on_body:
+            return self.mount.pose
+        rotation = np.asarray(data.cam_xmat[self._id], dtype=float).reshape(3, 3) @ _CV_TO_MJ
+        return CameraPose(np.array(data.cam_xpos[self._id], dtype=float), rotation)
 
     def capture(
         self,
@@ -446,7 +543,7 @@ class DepthCamera:
             inside[rows, cols] = depth[rows, cols]
             depth = inside
         depth = apply_noise(depth, self.mount.intrinsics, self.noise, rng)
-        return DepthImage(depth, self.mount.intrinsics, self.mount.pose)
+        return DepthImage(depth, self.mount.intrinsics, self.pose(data))
 
     def close(self) -> None:
         self._renderer.close()
