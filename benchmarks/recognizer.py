@@ -13,6 +13,11 @@ crops without an answer; the same again ("handle seen") on the crops whose camer
 least half of the handle around the contact point (lfo.grasp_data's SEEN_SHARE within
 CONTACT_RADIUS; the truth, used in scoring only): a distractor standing in front of the
 contact point hides it from any single view.
+The execution sequence looks twice: the CNN's answer for a head crop aims the wrist camera
+(lfo.perception.WRIST_CAMERAS) from its look pose, and the head and wrist images together are
+recognized again (lfo.grasp_data.second_look_rows; the hand itself is not in these scenes).
+The `cnn, second look` rows score that second answer, one per head crop: the grasp the
+sequence goes to.
 Also, as a further row per kind in the same table (`demonstration`), what the recognizers
 start from: the demonstrated point's own distance from the contact point and the nominal
 approach's error. `--kinds`: those kinds' scenes only (the same scenes as in the full set);
@@ -32,20 +37,32 @@ from pathlib import Path
 import numpy as np
 
 from constraint_aware.bench.provenance import write_results
-from constraint_aware.lfo.grasp_data import SEEN_SHARE, GraspDataset, generate
+from constraint_aware.lfo.grasp_data import (
+    HEAD,
+    SECOND_LOOK,
+    SEEN_SHARE,
+    GraspDataset,
+    generate,
+)
 from constraint_aware.lfo.grasp_training import (
     DEMONSTRATION,
     Scores,
     demonstration_scores,
     score,
 )
-from constraint_aware.recognizer import ContactPointRecognizer, GeometricRecognizer
+from constraint_aware.recognizer import (
+    ContactPointRecognizer,
+    GeometricRecognizer,
+    GraspFrame,
+    RecognitionError,
+)
 from constraint_aware.sim.camera import NO_NOISE
 from constraint_aware.sim.tasks import KINDS
 
 HERE = Path(__file__).parent
 TARGETS = {"median_mm": 5.0, "p95_mm": 15.0, "approach_p95_deg": 10.0}
 CROPS_PER_SCENE = 8  # lfo.grasp_data.generate's default: 4 crops per view, 2 robots' cameras
+SECOND_LOOK_METHOD = "cnn, second look"
 
 
 def _f(x: float | None) -> str:
@@ -96,7 +113,18 @@ def main() -> None:
     args = parser.parse_args()
     start = time.perf_counter()
     kinds_asked = tuple(k for k in args.kinds.split(",") if k)
-    data = (
+    cnn = ContactPointRecognizer.load()
+
+    def look_from(
+        robot: str, frame: GraspFrame, height: np.ndarray, shape: str
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        try:
+            found = cnn.recognize(np.asarray(height, dtype=float), frame, shape)
+        except RecognitionError:
+            return None  # the sequence stops before it looks again
+        return found.contact_point, found.approach
+
+    everything = (
         GraspDataset.load(args.data)
         if args.data
         else generate(
@@ -105,14 +133,16 @@ def main() -> None:
             kinds=kinds_asked,
             distractors=not args.no_distractors,
             noise=NO_NOISE if args.noiseless else None,
+            look_from=look_from,
         )
     )
     generated = time.perf_counter() - start
-    scores = {
-        found.name: score(found, data)
-        for found in (ContactPointRecognizer.load(), GeometricRecognizer())
-    }
+    data = everything.select(everything.views == HEAD)
+    looked = everything.select(everything.views == SECOND_LOOK)
+    scores = {found.name: score(found, data) for found in (cnn, GeometricRecognizer())}
     tables = {name: s.table() for name, s in scores.items()}
+    if len(looked):
+        tables[SECOND_LOOK_METHOD] = score(cnn, looked).table()
     seen = np.asarray(data.contact_visible) >= SEEN_SHARE  # the truth, for scoring only
     seen_tables = {f"{name}, handle seen": s.subset(seen).table() for name, s in scores.items()}
     kinds = list(dict.fromkeys(data.kinds.tolist()))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import mujoco
@@ -95,6 +96,7 @@ def test_a_dataset_file_without_visibility_loads_with_nan_and_a_foreign_file_is_
     old = GraspDataset.load(tmp_path / "old.npz")
     assert len(old) == n and np.all(np.isnan(old.visible))
     assert np.all(np.isnan(old.contact_visible))
+    assert list(old.views) == ["head"] * n  # written before the second look
     np.savez(tmp_path / "other.npz", x=np.zeros(2))
     with pytest.raises(InvalidInputError, match="not a recognizer dataset"):
         GraspDataset.load(tmp_path / "other.npz")
@@ -115,3 +117,23 @@ def test_generated_crops_take_the_sensor_noise_asked_for() -> None:
     difference = np.abs(crops["noisy"] - crops["exact"])[both]
     assert float(np.median(difference)) > 0.2e-3  # the sensor's noise: about a millimetre
     assert int(np.sum(~np.isfinite(crops["noisy"]))) > int(np.sum(~np.isfinite(crops["exact"])))
+
+
+def test_second_looks_come_after_the_head_crops_and_are_labelled_in_their_own_frame() -> None:
+    from constraint_aware.lfo.grasp_data import HEAD, LOOK_SPREAD, SECOND_LOOK, generate
+
+    asked = dict(seed=5, kinds=("drawer",), robots=("hook-hand",), crops_per_view=2)
+    head = generate(1, **asked)  # type: ignore[arg-type]
+    both = generate(1, looks_per_view=2, **asked)  # type: ignore[arg-type]
+    assert list(both.views) == [HEAD, HEAD, SECOND_LOOK, SECOND_LOOK]
+    first = both.select(both.views == HEAD)
+    # the head crops are drawn first: the same with or without second looks
+    assert np.array_equal(first.heights, head.heights, equal_nan=True)
+    looked = both.select(both.views == SECOND_LOOK)
+    # each crop sits where its look aimed, LOOK_SPREAD around the contact point, and its
+    # label is the contact point in that crop's frame
+    assert np.allclose(np.linalg.norm(looked.points, axis=1), looked.offsets)
+    assert np.all(looked.offsets < 5 * math.sqrt(3) * LOOK_SPREAD)
+    # the wrist camera on the approach sees the contact point's surroundings
+    assert np.all(looked.contact_visible > 0.9)
+    assert np.all(np.isfinite(looked.heights).sum(axis=(1, 2)) > 500)

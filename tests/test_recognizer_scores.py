@@ -40,6 +40,7 @@ def _dataset(shape: str, heights: np.ndarray, points: np.ndarray, tilt: np.ndarr
         nominal_errors=tilt,
         visible=np.ones(n),
         contact_visible=np.ones(n),
+        views=np.full(n, "head"),
     )
 
 

@@ -920,6 +920,9 @@ def _train_grasp_parser(p: argparse.ArgumentParser) -> None:
         "--validation-scenes", type=int, default=30, help="validation scenes per object kind"
     )
     p.add_argument("--crops", type=int, default=4, help="crops per camera view (demo offsets)")
+    p.add_argument(
+        "--looks", type=int, default=4, help="second-look crops per robot and scene (>= 0)"
+    )
     p.add_argument("--epochs", type=int, default=20, help="training epochs")
     p.add_argument("--seed", type=int, default=0, help="seeds the scenes and the training")
     p.add_argument("--data", metavar="NPZ", help="reuse a training set (grasp_train.npz)")
@@ -943,6 +946,8 @@ def cmd_train_grasp(args: argparse.Namespace) -> int:
     for flag, value in counts.items():
         if value < 1:
             raise InvalidInputError(f"{flag} {value}: must be >= 1")
+    if args.looks < 0:
+        raise InvalidInputError(f"--looks {args.looks}: must be >= 0")
     if args.seed < 0:
         raise InvalidInputError(f"--seed {args.seed}: must be >= 0")
     if args.data and not Path(args.data).is_file():
@@ -980,7 +985,7 @@ def cmd_train_grasp(args: argparse.Namespace) -> int:
 
         result = train_grasp(
             out, args.scenes, args.validation_scenes, args.crops, args.seed, config,
-            args.data, on_scene, on_epoch,
+            args.data, on_scene, on_epoch, looks_per_view=args.looks,
         )  # fmt: skip
     table = Table(title="contact-point recognizers on the validation scenes")
     for col in ("method", "kind", "median [mm]", "p95 [mm]", "approach p95 [deg]"):

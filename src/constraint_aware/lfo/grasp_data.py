@@ -44,7 +44,9 @@ from constraint_aware.recognizer import (
 )
 from constraint_aware.sim.camera import (
     CameraMount,
+    CameraPose,
     DepthCamera,
+    DepthImage,
     DepthNoise,
     add_camera,
     region_of_interest,
@@ -73,6 +75,11 @@ CONTACT_RADIUS = 0.03
 #: whatever hides it, where no single view locates it.
 SEEN_SHARE = 0.5
 DEMO_NOISE = 0.005  # [m] the demonstrations' tracking noise (bench.placement's)
+HEAD = "head"
+SECOND_LOOK = "second look"
+#: [m] per axis: how far from the contact point a training crop's second look aims (the head
+#: camera's recognition error, whose tail reaches some centimetres where a handle is hidden)
+LOOK_SPREAD = 0.008
 
 
 @dataclass
@@ -83,7 +90,9 @@ class GraspDataset:
     the contact point; nominal_errors (N,) [deg] the nominal approach's error; visible (N,)
     [0, 1] the share of the handle its camera sees unoccluded (`handle_visibility`), and
     contact_visible (N,) [0, 1] that of the handle within `CONTACT_RADIUS` of the contact
-    point (NaN in a file written without them)."""
+    point (NaN in a file written without them); views (N,) `HEAD` (the head camera's image) or
+    `SECOND_LOOK` (the head camera's and the wrist camera's, `second_look_rows`; a file
+    written without it holds head crops only)."""
 
     heights: np.ndarray
     shapes: np.ndarray
@@ -95,6 +104,7 @@ class GraspDataset:
     nominal_errors: np.ndarray
     visible: np.ndarray
     contact_visible: np.ndarray
+    views: np.ndarray
 
     def __len__(self) -> int:
         return len(self.shapes)
@@ -114,10 +124,18 @@ class GraspDataset:
         for name in ("visible", "contact_visible"):
             if name not in fields and "shapes" in fields:
                 fields[name] = np.full(len(fields["shapes"]), np.nan)
+        if "views" not in fields and "shapes" in fields:
+            fields["views"] = np.full(len(fields["shapes"]), HEAD)
         missing = [f.name for f in dataclasses.fields(cls) if f.name not in fields]
         if missing:
             raise InvalidInputError(f"{path}: not a recognizer dataset (no {', '.join(missing)})")
         return cls(**fields)
+
+    def select(self, mask: np.ndarray) -> GraspDataset:
+        """The crops where `mask` (N,) bool is True."""
+        return GraspDataset(
+            **{f.name: getattr(self, f.name)[mask] for f in dataclasses.fields(self)}
+        )
 
     @classmethod
     def concatenate(cls, parts: list[GraspDataset]) -> GraspDataset:
@@ -319,6 +337,92 @@ def scene_rngs(seed: int, kind: str, index: int) -> Iterator[np.random.Generator
         yield np.random.default_rng([seed, k, index, attempt])
 
 
+def second_look_rows(
+    scene: DrawnScene,
+    heads: dict[str, FloatArray],
+    looks: list[tuple[str, FloatArray, FloatArray]],
+    rng: np.random.Generator,
+    noise: DepthNoise | None = None,
+) -> dict[str, list[Any]]:
+    """The second-look crops of `scene`, as the execution sequence's look phase makes them:
+    for each (robot, look point (3,) [m], approach (3,) unit) of `looks`, the robot's wrist
+    camera (lfo.perception.WRIST_CAMERAS) on the approach `standoff` back from the point,
+    its image and the robot's head image's points (`heads`: robot -> (N, 3) [m]) in one crop
+    at the point (the scene's nominal crop rotation). The hand is not in the scene (the
+    sequence's self filter drops its pixels; what it hides is not modelled here)."""
+    from constraint_aware.lfo.perception import WRIST_CAMERA_NAME, wrist_camera
+
+    spec = scene.spec.copy()
+    eye = spec.worldbody.add_body(name="second_look", mocap=True)
+    frame0 = scene.frame
+    rows: dict[str, list[Any]] = {f.name: [] for f in dataclasses.fields(GraspDataset)}
+    mounts = {robot: wrist_camera(robot) for robot, _, _ in looks}
+    # one camera per robot on the look's mocap body, its pose that body's
+    on_eye = {
+        robot: CameraMount(
+            f"{WRIST_CAMERA_NAME}_{robot}", CameraPose(np.zeros(3), np.eye(3)), camera.intrinsics
+        )
+        for robot, camera in mounts.items()
+    }
+    for mount in on_eye.values():
+        add_camera(spec, mount, body=eye.name)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    renderers = {robot: DepthCamera(model, mount, noise) for robot, mount in on_eye.items()}
+    try:
+        for robot, point, approach in looks:
+            camera = mounts[robot]
+            z = unit(np.asarray(approach, dtype=float))
+            x = unit(np.cross(frame0.rotation[:, 1], z))
+            rotation = np.stack([x, np.cross(z, x), z], axis=1)
+            data.mocap_pos[0] = np.asarray(point) - camera.standoff * z
+            quat = np.zeros(4)
+            mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation).reshape(9))
+            data.mocap_quat[0] = quat
+            mujoco.mj_forward(model, data)
+            frame = GraspFrame(np.asarray(point, dtype=float), frame0.rotation)
+            wrist = renderers[robot]
+            mount = dataclasses.replace(wrist.mount, pose=wrist.pose(data))
+            image = wrist.capture(data, rng, region_of_interest(mount, crop_corners(frame)))
+            _append_second_look(rows, scene, robot, frame, heads[robot], image, model, data, mount)
+    finally:
+        for wrist in renderers.values():
+            wrist.close()
+    return rows
+
+
+def _append_second_look(
+    rows: dict[str, list[Any]],
+    scene: DrawnScene,
+    robot: str,
+    frame: GraspFrame,
+    head: FloatArray,
+    image: DepthImage,
+    model: mujoco.MjModel,
+    data: mujoco.MjData,
+    mount: CameraMount,
+) -> None:
+    """One second-look crop and its labels onto `rows`."""
+    points = np.concatenate([head, image.points()])
+    truth, truth_approach = contact_label(scene.place.task, scene.shape, frame.origin)
+    rows["heights"].append(depth_crop(points, frame).astype(np.float32))
+    rows["shapes"].append(HANDLE_SHAPES.index(scene.shape))
+    rows["points"].append(frame.to_local(truth[None])[0])
+    rows["approaches"].append(frame.rotation.T @ truth_approach)
+    rows["kinds"].append(scene.place.kind)
+    rows["robots"].append(robot)
+    rows["offsets"].append(float(np.linalg.norm(frame.origin - truth)))
+    rows["nominal_errors"].append(float(angle_deg(frame.rotation[:, 2], truth_approach)))
+    rows["visible"].append(handle_visibility(model, data, mount))
+    rows["contact_visible"].append(handle_visibility(model, data, mount, around=truth))
+    rows["views"].append(SECOND_LOOK)
+
+
+#: Looks at a scene from a dataset's head crops: (robot, crop frame, head crop) -> the look
+#: point (3,) [m] and approach (3,), None for none (the benchmark: a recognizer's answer).
+LookFrom = Callable[[str, GraspFrame, FloatArray, str], tuple[FloatArray, FloatArray] | None]
+
+
 def scene_samples(
     kind: str,
     rng: np.random.Generator,
@@ -328,9 +432,14 @@ def scene_samples(
     distractors: bool = True,
     offset: HandOffset | None = None,
     noise: DepthNoise | None = None,
+    looks_per_view: int = 0,
+    look_from: LookFrom | None = None,
 ) -> GraspDataset | None:
     """The crops of one random scene of `kind` (module docstring), None when its
-    demonstration gives no usable skill."""
+    demonstration gives no usable skill. Second looks (`second_look_rows`), drawn after the
+    head crops: `looks_per_view` per robot aimed `LOOK_SPREAD` around the contact point (for
+    training), and with `look_from` one per head crop, aimed where it answers for the crop
+    (for scoring the sequence's second recognition)."""
     offset = offset or HandOffset()
     scene = draw_scene(kind, rng, sizes, distractors, offset)
     if scene is None:
@@ -346,9 +455,12 @@ def scene_samples(
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     rows: dict[str, list[Any]] = {f.name: [] for f in dataclasses.fields(GraspDataset)}
+    heads: dict[str, FloatArray] = {}
+    origins_of: list[FloatArray] = []
     for robot, mount in zip(robots, mounts, strict=True):
         drawn = [scene.truth + offset.draw(rng) for _ in range(crops_per_view - 1)]
         origins = [frame0.origin, *drawn]
+        origins_of.extend(np.asarray(o) for o in origins)
         corners = np.concatenate([crop_corners(GraspFrame(o, frame0.rotation)) for o in origins])
         roi = region_of_interest(mount, corners)
         with DepthCamera(model, mount, noise) as camera:
@@ -368,6 +480,21 @@ def scene_samples(
             rows["nominal_errors"].append(float(angle_deg(frame.rotation[:, 2], approach)))
             rows["visible"].append(visible)
             rows["contact_visible"].append(handle_visibility(model, data, mount, around=truth))
+            rows["views"].append(HEAD)
+        heads[robot] = points
+    looks: list[tuple[str, FloatArray, FloatArray]] = []
+    for robot in robots:
+        for _ in range(looks_per_view):
+            looks.append((robot, scene.truth + rng.normal(0.0, LOOK_SPREAD, 3), scene.approach))
+    if look_from is not None:
+        for i, robot in enumerate(rows["robots"]):
+            frame = GraspFrame(origins_of[i], frame0.rotation)
+            found = look_from(robot, frame, rows["heights"][i], scene.shape)
+            if found is not None:
+                looks.append((robot, *found))
+    if looks:
+        for name, values in second_look_rows(scene, heads, looks, rng, noise).items():
+            rows[name].extend(values)
     return GraspDataset(**{k: np.asarray(v) for k, v in rows.items()})
 
 
@@ -381,10 +508,12 @@ def generate(
     distractors: bool = True,
     progress: Callable[[int, int], None] | None = None,
     noise: DepthNoise | None = None,
+    looks_per_view: int = 0,
+    look_from: LookFrom | None = None,
 ) -> GraspDataset:
     """`scenes_per_kind` usable scenes of each kind (`scene_samples`, the sensor's `noise`:
-    sim.camera's default when None), seeded: scene i of a kind draws from `scene_rngs(seed,
-    kind, i)` until one gives a usable demonstration."""
+    sim.camera's default when None; its second looks), seeded: scene i of a kind draws from
+    `scene_rngs(seed, kind, i)` until one gives a usable demonstration."""
     if scenes_per_kind < 1:
         raise InvalidInputError(f"scenes_per_kind: {scenes_per_kind}; valid: >= 1")
     if crops_per_view < 1:
@@ -398,8 +527,9 @@ def generate(
         for i in range(scenes_per_kind):
             for rng in scene_rngs(seed, kind, i):
                 part = scene_samples(
-                    kind, rng, robots, crops_per_view, sizes, distractors, noise=noise
-                )
+                    kind, rng, robots, crops_per_view, sizes, distractors, noise=noise,
+                    looks_per_view=looks_per_view, look_from=look_from,
+                )  # fmt: skip
                 if part is not None:
                     parts.append(part)
                     break

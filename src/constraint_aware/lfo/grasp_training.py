@@ -141,8 +141,10 @@ def train_grasp(
     data: str | Path | None = None,
     on_scene: Callable[[str, int, int], None] | None = None,
     on_epoch: Callable[[int, dict[str, float]], None] | None = None,
+    looks_per_view: int = 4,
 ) -> GraspTraining:
-    """Generate the crops (or read the training set from `data`, a GraspDataset .npz),
+    """Generate the crops (or read the training set from `data`, a GraspDataset .npz), with
+    `looks_per_view` second-look crops per robot and scene (lfo.grasp_data.scene_samples),
     train the CNN (`config`: training.grasp.GraspTrainConfig), score it and the geometric
     baseline per kind on validation crops of other scenes, write OUT/recognizer.npz + .json
     and the datasets. on_scene(stage, done, total) and on_epoch(epoch, row) report progress."""
@@ -164,11 +166,13 @@ def train_grasp(
         train = generate(
             scenes_per_kind, seed=2 * seed + 1, crops_per_view=crops_per_view,
             progress=None if on_scene is None else (lambda d, t: on_scene("training", d, t)),
+            looks_per_view=looks_per_view,
         )  # fmt: skip
         train.save(out_dir / "grasp_train.npz")
     valid = generate(
         validation_scenes, seed=2 * seed + 2, crops_per_view=crops_per_view,
         progress=None if on_scene is None else (lambda d, t: on_scene("validation", d, t)),
+        looks_per_view=looks_per_view,
     )  # fmt: skip
     valid.save(out_dir / "grasp_validation.npz")
     times["data_s"] = time.perf_counter() - start
@@ -178,7 +182,8 @@ def train_grasp(
         validation=(valid.heights, valid.shapes, valid.points, valid.approaches),
         progress=on_epoch,
         card={"data": {"scenes_per_kind": scenes_per_kind, "crops_per_view": crops_per_view,
-                       "seed": seed, "train_crops": len(train), "validation_crops": len(valid)}},
+                       "looks_per_view": looks_per_view, "seed": seed,
+                       "train_crops": len(train), "validation_crops": len(valid)}},
     )  # fmt: skip
     times["training_s"] = result.wall_time_s
     scores = {
