@@ -217,6 +217,11 @@ def test_the_sequence_runs_from_home_to_home_without_ground_truth() -> None:
     assert all(p.outcome == "ok" for p in record.phases)
     perceived = record.phase("perceive").details["contact_point"]
     assert np.linalg.norm(np.asarray(perceived) - place.task.object.handle_position) < 0.01
+    look = record.phase("look").details  # the wrist camera's second recognition
+    assert look["wrist_camera"] and look["shift_mm"] < 10.0
+    assert (
+        np.linalg.norm(np.asarray(look["contact_point"]) - place.task.object.handle_position) < 0.01
+    )
     # scoring afterwards: the monitor back in place
     sim = result.sim
     for name in TRUTH:
@@ -305,8 +310,11 @@ def test_a_bar_outside_the_hook_stops_the_manipulation_on_lost_contact() -> None
             point, approach = contact_label(place.task, shape, np.asarray(skill.start_position))
             return Recognition(point - 0.04 * approach, approach, self.name)
 
-    result = run_in_simulation(skill, place.task, "hook-hand", recognizer=InFront())
+    # (a robot without a wrist camera: the one look is the head camera's, and the record says so)
+    result = run_in_simulation(skill, place.task, "hook-hand", recognizer=InFront(), wrist=False)
     record = result.record
+    assert record.phase("look").outcome == "ok" and not record.phase("look").details["wrist_camera"]
+    assert any(note.startswith("no wrist camera") for note in record.notes)
     assert not record.success and record.failed_phase == "manipulate"
     assert record.phase("grasp").outcome == "ok"
     assert record.manipulation is not None and record.manipulation.outcome == "contact_lost"
@@ -339,7 +347,7 @@ def test_cap_lfo_executes_the_sequence_from_home(tmp_path: Any) -> None:
     execution = json.loads(out.read_text())["execution"]
     assert execution["start"] == "home" and execution["success"] is True
     phases = json.loads(rec.read_text())["phases"]
-    assert [p["outcome"] for p in phases] == ["ok"] * 8
+    assert [p["outcome"] for p in phases] == ["ok"] * 9  # every phase, look included
 
 
 @pytest.mark.parametrize(

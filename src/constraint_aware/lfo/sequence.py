@@ -7,26 +7,33 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
 1. perceive: one depth image from the head camera, the crop around the demonstrated point,
    the recognizer's contact point and approach (lfo/perception.py); the skill is corrected
    by them (start, and for a hinge radius and initial direction).
-2. reach: from home to the pre-grasp, `pre_grasp` back from the grasp along the approach,
-   the hand pre-shaped for the force-exertion type; no contact allowed (control/approach.py;
-   the Jaco follows a collision-aware joint path, sim/reach.py).
-3. approach: in along the approach to the grasp; a force above the contact limit stops it:
+2. reach: from home to the look pose, from which the wrist camera sees the perceived
+   contact point along the approach (lfo.perception.WristCamera; without a wrist camera to
+   the pre-grasp), the hand pre-shaped for the force-exertion type; no contact allowed
+   (control/approach.py; the Jaco follows a collision-aware joint path, sim/reach.py).
+3. look: the wrist camera's depth image and the head camera's in one crop around the
+   perceived contact point, recognized again (`perception.perceive_again`: the head camera
+   alone sees some handles only partly, past a distractor or the object's own edge); the
+   skill is corrected by the second recognition, and the hand moves to the pre-grasp,
+   `pre_grasp` back from the grasp along the approach. Without a wrist camera the phase
+   keeps the first recognition and says so in the record's notes.
+4. approach: in along the approach to the grasp; a force above the contact limit stops it:
    near the grasp as contact, earlier as a failure. Passive closures (plate, knob) aim
    `overshoot` past the perceived surface and stop at contact.
-4. grasp: the hand closes by the force-exertion type; a passive closure presses
+5. grasp: the hand closes by the force-exertion type; a passive closure presses
    `press_depth` on; the wrist then rests where it settled (no preload) and the hand must
    report contact, unless it holds the handle with play (`grasp_touches`: the hook hand's
    bar, touched only when the hand pulls; a bar outside the hook shows in the manipulation
    as the executor's lost-contact stop). A grasp with play has it taken up
    (`SequenceConfig.take_up`): closing leaves the handle on the far side of the play, and the
    manipulation's first step would strike it.
-5. manipulate: the executor (control/executor.py) with the corrected skill's estimates in
+6. manipulate: the executor (control/executor.py) with the corrected skill's estimates in
    charge, exactly as `lfo.execute` runs it, without the simulator's task monitor.
-6. release: the wrist rests where it is, the hand opens to the shape it came in with (a way
+7. release: the wrist rests where it is, the hand opens to the shape it came in with (a way
    out known to be free); a hand that pressed (plate, knob) rests again where opening pushed
    it.
-7. retreat: back along the hand's approach axis by `retreat`.
-8. home: back to the home pose (the Jaco around the object, which it believes moved as far as
+8. retreat: back along the hand's approach axis by `retreat`.
+9. home: back to the home pose (the Jaco around the object, which it believes moved as far as
    its own hand did).
 
 `run_in_simulation` builds the simulated world (the true object, the robot at the station
@@ -65,10 +72,14 @@ from constraint_aware.geometry import FloatArray, unit
 from constraint_aware.lfo.infer import SkillParameters
 from constraint_aware.lfo.manipulation import SENSOR_NOISE, goal_label, manipulation_setup
 from constraint_aware.lfo.perception import (
+    Perception,
+    WristCamera,
     corrected_skill,
     head_camera,
     nominal_frame,
     perceive,
+    perceive_again,
+    wrist_camera,
 )
 from constraint_aware.lfo.scene import scene_from_skill
 from constraint_aware.policy import ConstraintAwarePolicy
@@ -79,7 +90,14 @@ from constraint_aware.recognizer import (
     Recognizer,
     make_recognizer,
 )
-from constraint_aware.sim.camera import CameraMount, DepthCamera, DepthImage, add_camera
+from constraint_aware.sim.camera import (
+    CameraMount,
+    DepthCamera,
+    DepthImage,
+    add_camera,
+    add_tool_camera,
+    body_tree_geoms,
+)
 from constraint_aware.sim.embodiment import DEFAULT_ROBOT, Embodiment, parse_robot
 from constraint_aware.sim.robot_adapter import CONTROL_PERIOD
 from constraint_aware.sim.tasks import TaskConfig
@@ -88,7 +106,9 @@ from constraint_aware.spatial import Pose
 if TYPE_CHECKING:
     from constraint_aware.sim.reach import View
 
-PHASES = ("perceive", "reach", "approach", "grasp", "manipulate", "release", "retreat", "home")
+PHASES = (
+    "perceive", "reach", "look", "approach", "grasp", "manipulate", "release", "retreat", "home",
+)  # fmt: skip
 #: points per side of the grid the Jaco's head camera must see from home (`station_for`)
 VIEW_GRID = 5
 START_HOME = "home"
@@ -317,16 +337,20 @@ def execute_sequence(
     label: dict[str, Any] | None = None,
     on_phase: Callable[[str], None] | None = None,
     on_period: Callable[[], None] | None = None,
+    wrist: tuple[WristCamera, Callable[[], DepthImage]] | None = None,
 ) -> SequenceRecord:
     """Run the phases (module docstring) on `robot` (a `sim.reach.SequenceRobot` or a real
     robot with the same members) at its home, with `capture()` giving the head camera's
-    depth image. Returns the record; an exception is re-raised as it came with the record
-    attached as `sequence_record` (the robot told to hold first)."""
+    depth image and `wrist` the wrist camera (where it sits on the hand, and its capture of
+    a depth image where the hand is; None: the robot has none). Returns the record; an
+    exception is re-raised as it came with the record attached as `sequence_record` (the
+    robot told to hold first)."""
     cfg = config or SequenceConfig()
     record = SequenceRecord(dict(label or {}))
     return _execute_into(
-        record, robot, capture, skill, controller, policy, recognizer, cfg, on_phase, on_period
-    )
+        record, robot, capture, skill, controller, policy, recognizer, cfg, on_phase, on_period,
+        wrist,
+    )  # fmt: skip
 
 
 def _fail(
@@ -349,6 +373,7 @@ def _run_phases(
     record: SequenceRecord,
     on_phase: Callable[[str], None] | None,
     on_period: Callable[[], None] | None,
+    wrist: tuple[WristCamera, Callable[[], DepthImage]] | None,
 ) -> SequenceRecord:
     def done(phase: PhaseRecord) -> None:
         if phase.outcome == "running":
@@ -372,29 +397,38 @@ def _run_phases(
     except RecognitionError as exc:
         return _fail(robot, record, phase, "not_recognized", str(exc))
     shape = seen.shape
-    fixed = corrected_skill(skill, seen.recognition)
-    approach = np.asarray(seen.recognition.approach, dtype=float)
-    orientation = grasp_orientation(fixed, approach)
-    grasp = robot.grasp_pose_at(seen.recognition.contact_point, orientation, shape)
-    pre = grasp.moved(-cfg.pre_grasp * approach)
-    believed = scene_from_skill(fixed).task
-    robot.believe(believed, 0.0)
+
+    def plan(found: Perception) -> tuple[SkillParameters, FloatArray, Rotation, Pose, Pose]:
+        """The corrected skill, approach, hand orientation, grasp and pre-grasp of a
+        recognition, the robot told what it now believes."""
+        fixed = corrected_skill(skill, found.recognition)
+        approach = np.asarray(found.recognition.approach, dtype=float)
+        orientation = grasp_orientation(fixed, approach)
+        grasp = robot.grasp_pose_at(found.recognition.contact_point, orientation, shape)
+        robot.believe(scene_from_skill(fixed).task, 0.0)
+        return fixed, approach, orientation, grasp, grasp.moved(-cfg.pre_grasp * approach)
+
+    def found(perception: Perception, grasp: Pose) -> dict[str, Any]:
+        return {
+            "method": perception.recognition.method,
+            "contact_point": [float(v) for v in perception.recognition.contact_point],
+            "approach": [float(v) for v in perception.recognition.approach],
+            "grasp_tool_point": [float(v) for v in grasp.position],
+        }
+
+    fixed, approach, orientation, grasp, pre = plan(seen)
     phase.details.update(
-        shape=shape,
-        method=seen.recognition.method,
-        contact_point=[float(v) for v in seen.recognition.contact_point],
-        approach=[float(v) for v in approach],
-        demonstrated_point=[float(v) for v in seen.frame.origin],
-        grasp_tool_point=[float(v) for v in grasp.position],
+        shape=shape, demonstrated_point=[float(v) for v in seen.frame.origin], **found(seen, grasp)
     )
     done(phase)
 
-    # 2. reach
+    # 2. reach: to where the wrist camera looks (or to the pre-grasp)
     phase = record.phase("reach")
     phase.outcome = "running"
     robot.preshape(shape)
+    goal = pre if wrist is None else wrist[0].look_pose(seen.recognition.contact_point, orientation)
     try:
-        path = robot.path_to(pre, cfg.reach, then=grasp)
+        path = robot.path_to(goal, cfg.reach, then=grasp)
     except CapError as exc:
         return _fail(robot, record, phase, "no_path", str(exc))
     m = move(phase, path, cfg.reach)
@@ -402,7 +436,38 @@ def _run_phases(
         return _fail(robot, record, phase, m.outcome, m.reason)
     done(phase)
 
-    # 3. approach
+    # 3. look: the second recognition, from the wrist camera, then on to the pre-grasp
+    phase = record.phase("look")
+    phase.outcome = "running"
+    if wrist is None:
+        record.notes.append(
+            "no wrist camera: the grasp is the head camera's recognition alone (a handle it "
+            "sees only partly is not looked at again)"
+        )
+        phase.details["wrist_camera"] = False
+    else:
+        robot.hold()
+        try:
+            again = perceive_again(seen, [image, wrist[1]()], recognizer)
+        except RecognitionError as exc:
+            return _fail(robot, record, phase, "not_recognized", str(exc))
+        fixed, approach, orientation, grasp, pre = plan(again)
+        shift = np.asarray(again.recognition.contact_point) - seen.recognition.contact_point
+        phase.details.update(
+            wrist_camera=True, shift_mm=1000.0 * float(np.linalg.norm(shift)),
+            **found(again, grasp),
+        )  # fmt: skip
+        try:
+            path = robot.path_to(pre, cfg.reach, then=grasp)
+        except CapError as exc:
+            return _fail(robot, record, phase, "no_path", str(exc))
+        m = move(phase, path, cfg.reach)
+        if not m.ok:
+            return _fail(robot, record, phase, m.outcome, m.reason)
+    believed = scene_from_skill(fixed).task
+    done(phase)
+
+    # 4. approach
     phase = record.phase("approach")
     phase.outcome = "running"
     passive = robot.press_depth(shape) > 0.0
@@ -422,7 +487,7 @@ def _run_phases(
     phase.details["stopped_by"] = m.outcome
     done(phase)
 
-    # 4. grasp: close by the force-exertion type, press (passive closures), settle
+    # 5. grasp: close by the force-exertion type, press (passive closures), settle
     phase = record.phase("grasp")
     phase.outcome = "running"
     robot.close_hand(shape)
@@ -478,7 +543,7 @@ def _run_phases(
     robot.ready_for_manipulation()
     done(phase)
 
-    # 5. manipulate: the executor, the skill's estimates in charge, no task monitor
+    # 6. manipulate: the executor, the skill's estimates in charge, no task monitor
     phase = record.phase("manipulate")
     phase.outcome = "running"
     exec_cfg, ctrl = manipulation_setup(fixed, believed, robot.control_period, controller, policy)
@@ -502,7 +567,7 @@ def _run_phases(
         return _fail(robot, record, phase, manipulation.outcome, manipulation.reason)
     done(phase)
 
-    # 6. release
+    # 7. release
     phase = record.phase("release")
     phase.outcome = "running"
     robot.hold()
@@ -518,7 +583,7 @@ def _run_phases(
             return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
     done(phase)
 
-    # 7. retreat along the hand's approach axis
+    # 8. retreat along the hand's approach axis
     phase = record.phase("retreat")
     phase.outcome = "running"
     here = robot.commanded_pose()
@@ -528,7 +593,7 @@ def _run_phases(
         return _fail(robot, record, phase, m.outcome, m.reason)
     done(phase)
 
-    # 8. home
+    # 9. home
     phase = record.phase("home")
     phase.outcome = "running"
     moved_to = _believed_progress(fixed, grasp, here)
@@ -602,16 +667,19 @@ def build_world(
     sensor_noise: float = SENSOR_NOISE,
 ) -> tuple[Embodiment, Any]:
     """The simulated world: `task`'s object (the truth), the robot at `station` with the head
-    camera composed in; returns the embodiment and its `SequenceRobot` adapter."""
+    camera and the wrist camera (`WRIST_CAMERA_NAME`, on the tool point's body) composed in;
+    returns the embodiment and its `SequenceRobot` adapter."""
     spec = parse_robot(robot)
     if spec.name == "hook-hand":
         from constraint_aware.lfo.robots import HookHandRobot
-        from constraint_aware.sim.world import ManipulationSim, build_filtered_spec
+        from constraint_aware.sim.hand import TCP_SITE
+        from constraint_aware.sim.world import HOOK_PREFIX, ManipulationSim, build_filtered_spec
 
         if spec.stiffness is not None:
             task = task.with_overrides(hand__translational_stiffness=spec.stiffness)
         world = build_filtered_spec(task)
         add_camera(world, station.camera)
+        add_tool_camera(world, wrist_camera(spec.name).mount(), HOOK_PREFIX + TCP_SITE)
         hook = ManipulationSim(
             task, model=world.compile(), control_period=spec.period or CONTROL_PERIOD
         )
@@ -619,6 +687,7 @@ def build_world(
         assert station.home_pose is not None
         return hook, HookHandRobot(hook, station.home_pose)
     from constraint_aware.lfo.robots import JacoRobot
+    from constraint_aware.sim.jaco import TCP_SITE as JACO_TCP_SITE
     from constraint_aware.sim.jaco import JacoSim, OscConfig
     from constraint_aware.sim.jaco import build_spec as jaco_spec
     from constraint_aware.sim.reach import JacoPlanner
@@ -626,6 +695,7 @@ def build_world(
     assert station.base is not None and station.home_joints is not None
     world = jaco_spec(task, station.base)
     add_camera(world, station.camera)
+    add_tool_camera(world, wrist_camera(spec.name).mount(), JACO_TCP_SITE)
     osc = OscConfig()
     if spec.stiffness is not None:
         osc = dataclasses.replace(osc, translational_stiffness=spec.stiffness)
@@ -649,13 +719,15 @@ def run_in_simulation(
     on_phase: Callable[[str, Embodiment], None] | None = None,
     on_period: Callable[[Embodiment], None] | None = None,
     world_hook: Callable[[Embodiment], None] | None = None,
+    wrist: bool = True,
 ) -> SimulatedSequence:
     """The sequence on the simulated `task` (the truth: only the world is built from it).
     The station comes from the skill (a base moved when the grasp perceived from there is out
     of reach: the world is then built again, before anything moved); the camera's noise and
     the force sensor's from `seed`. world_hook(sim) runs on each world built (tests inject
     faults through it);
-    on_phase(name, sim) and on_period(sim) observe (scoring, video)."""
+    on_phase(name, sim) and on_period(sim) observe (scoring, video). `wrist`: whether the
+    robot's wrist camera takes part (False: the grasp from the head camera's look alone)."""
     cfg = config or SequenceConfig()
     station = station_for(robot, skill, cfg)
     recognizer = recognizer or make_recognizer(cfg.recognizer)
@@ -710,6 +782,16 @@ def run_in_simulation(
         seen.append(taken)
         return taken
 
+    on_wrist = wrist_camera(robot)
+
+    def capture_wrist() -> DepthImage:
+        """The wrist camera's image where the hand is now, the robot's own geoms filtered."""
+        mount = on_wrist.mount()
+        hand = sim.model.cam_bodyid[sim.model.camera(mount.name).id]
+        own = body_tree_geoms(sim.model, sim.model.body(hand).name)
+        with DepthCamera(sim.model, mount, own_geoms=own) as camera:
+            return camera.capture(sim.data, np.random.default_rng(seed + 130363))
+
     label = {
         "robot": robot,
         "controller": controller,
@@ -725,6 +807,7 @@ def run_in_simulation(
         record, adapter, capture, skill, controller, policy, recognizer, cfg,
         None if on_phase is None else (lambda name: on_phase(name, sim)),
         None if on_period is None else (lambda: on_period(sim)),
+        (on_wrist, capture_wrist) if wrist else None,
     )  # fmt: skip
     return SimulatedSequence(out, station, sim, seen[0] if seen else None)
 
@@ -740,11 +823,12 @@ def _execute_into(
     cfg: SequenceConfig,
     on_phase: Callable[[str], None] | None,
     on_period: Callable[[], None] | None,
+    wrist: tuple[WristCamera, Callable[[], DepthImage]] | None = None,
 ) -> SequenceRecord:
     """`execute_sequence` filling a given record (so that observers see it as it grows)."""
     try:
         _run_phases(robot, capture, skill, controller, policy, recognizer, cfg, record,
-                    on_phase, on_period)  # fmt: skip
+                    on_phase, on_period, wrist)  # fmt: skip
     except BaseException as exc:
         request_hold(robot, record.notes)
         current = next((p for p in record.phases if p.outcome == "running"), None)
