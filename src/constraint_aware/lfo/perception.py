@@ -139,10 +139,11 @@ class WristCamera:
 
 
 #: Each robot's wrist camera (a RealSense-like depth stream on a bracket 8 cm off the hand's
-#: axis, 10 cm behind the tool point: the fingers stay below its range and off its centre).
+#: axis, 20 cm behind the tool point: on the Jaco, on its last link behind the flange). Its
+#: standoff is then the pre-grasp's depth: the look pose is the pre-grasp moved 8 cm aside.
 WRIST_CAMERAS: dict[str, WristCamera] = {
-    "hook-hand": WristCamera((0.08, 0.0, -0.10), 0.30, CameraIntrinsics(640, 480, 58.0)),
-    "jaco": WristCamera((0.08, 0.0, -0.10), 0.30, CameraIntrinsics(640, 480, 58.0)),
+    "hook-hand": WristCamera((0.08, 0.0, -0.20), 0.30, CameraIntrinsics(640, 480, 58.0)),
+    "jaco": WristCamera((0.08, 0.0, -0.20), 0.30, CameraIntrinsics(640, 480, 58.0)),
 }
 WRIST_CAMERA_NAME = "wrist_camera"
 
