@@ -228,11 +228,6 @@ class JacoRobot(SequenceRobot):
     def close_hand(self, shape: str) -> None:
         self._jaco.set_fingers(JACO_GRASPS[_check_shape(shape)].finger_target)
 
-    def grasp_touches(self, shape: str) -> bool:
-        # a bar is hooked (lazy closure): the fingers curl to a fixed angle, not onto the bar,
-        # so it sits in the hook with play and touches it only when the hand pulls
-        return _check_shape(shape) != "bar"
-
     def open_hand(self, shape: str) -> None:
         # back to the shape the hand came in with: a fist opened on a plate would push its
         # fingers into it (9.5 N at the retreat's first period)

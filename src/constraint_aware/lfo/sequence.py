@@ -7,16 +7,16 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
 1. perceive: one depth image from the head camera, the crop around the demonstrated point,
    the recognizer's contact point and approach (lfo/perception.py); the skill is corrected
    by them (start, and for a hinge radius and initial direction).
-2. reach: from home to the look pose, from which the wrist camera sees the perceived
-   contact point along the approach (lfo.perception.WristCamera; without a wrist camera to
-   the pre-grasp), the hand pre-shaped for the force-exertion type; no contact allowed
-   (control/approach.py; the Jaco follows a collision-aware joint path, sim/reach.py).
-3. look: the wrist camera's depth image and the head camera's in one crop around the
-   perceived contact point, recognized again (`perception.perceive_again`: the head camera
-   alone sees some handles only partly, past a distractor or the object's own edge); the
-   skill is corrected by the second recognition, and the hand moves to the pre-grasp,
-   `pre_grasp` back from the grasp along the approach. Without a wrist camera the phase
-   keeps the first recognition and says so in the record's notes.
+2. reach: from home to the pre-grasp, `pre_grasp` back from the grasp along the approach,
+   the hand pre-shaped for the force-exertion type; no contact allowed (control/approach.py;
+   the Jaco follows a collision-aware joint path, sim/reach.py).
+3. look: a sidestep to the look pose, from which the wrist camera sees the perceived
+   contact point along the approach (lfo.perception.WristCamera); its depth image and the
+   head camera's in one crop around that point, recognized again (`perception.
+   perceive_again`: the head camera alone sees some handles only partly, past a distractor or
+   the object's own edge); the skill is corrected by the second recognition and the hand
+   moves to its pre-grasp. Straight lines, no contact allowed. Without a wrist camera the
+   phase keeps the first recognition and says so in the record's notes.
 4. approach: in along the approach to the grasp; a force above the contact limit stops it:
    near the grasp as contact, earlier as a failure. Passive closures (plate, knob) aim
    `overshoot` past the perceived surface and stop at contact.
@@ -26,7 +26,9 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
    bar, touched only when the hand pulls; a bar outside the hook shows in the manipulation
    as the executor's lost-contact stop). A grasp with play has it taken up
    (`SequenceConfig.take_up`): closing leaves the handle on the far side of the play, and the
-   manipulation's first step would strike it.
+   manipulation's first step would strike it. So has a hook (lazy closure) that closing left
+   untouched (the Jaco's fingers curl to a fixed angle: whether they touch the bar depends on
+   where it sits in the hook); it must touch after that.
 6. manipulate: the executor (control/executor.py) with the corrected skill's estimates in
    charge, exactly as `lfo.execute` runs it, without the simulator's task monitor.
 7. release: the wrist rests where it is, the hand opens to the shape it came in with (a way
@@ -422,13 +424,12 @@ def _run_phases(
     )
     done(phase)
 
-    # 2. reach: to where the wrist camera looks (or to the pre-grasp)
+    # 2. reach
     phase = record.phase("reach")
     phase.outcome = "running"
     robot.preshape(shape)
-    goal = pre if wrist is None else wrist[0].look_pose(seen.recognition.contact_point, orientation)
     try:
-        path = robot.path_to(goal, cfg.reach, then=grasp)
+        path = robot.path_to(pre, cfg.reach, then=grasp)
     except CapError as exc:
         return _fail(robot, record, phase, "no_path", str(exc))
     m = move(phase, path, cfg.reach)
@@ -446,6 +447,12 @@ def _run_phases(
         )
         phase.details["wrist_camera"] = False
     else:
+        # a sidestep across the approach, in the corridor the hand comes in by, and back: short
+        # straight lines keep the arm's configuration for the grasp
+        look = wrist[0].look_pose(seen.recognition.contact_point, orientation)
+        m = move(phase, straight_line(pre, look, cfg.reach, robot.control_period), cfg.reach)
+        if not m.ok:
+            return _fail(robot, record, phase, m.outcome, m.reason)
         robot.hold()
         try:
             again = perceive_again(seen, [image, wrist[1]()], recognizer)
@@ -457,11 +464,8 @@ def _run_phases(
             wrist_camera=True, shift_mm=1000.0 * float(np.linalg.norm(shift)),
             **found(again, grasp),
         )  # fmt: skip
-        try:
-            path = robot.path_to(pre, cfg.reach, then=grasp)
-        except CapError as exc:
-            return _fail(robot, record, phase, "no_path", str(exc))
-        m = move(phase, path, cfg.reach)
+        here = robot.commanded_pose()
+        m = move(phase, straight_line(here, pre, cfg.reach, robot.control_period), cfg.reach)
         if not m.ok:
             return _fail(robot, record, phase, m.outcome, m.reason)
     believed = scene_from_skill(fixed).task
@@ -521,7 +525,10 @@ def _run_phases(
         # the wrist rests where closing left it (no preload) ...
         robot.hold()
         touched = rest(robot.commanded_pose())
-        if touched is not None and not robot.grasp_touches(shape):
+        # a hook (lazy closure) the closed hand does not touch holds the handle with play too:
+        # the fingers curl to a fixed angle, not onto it, and where it sits in the hook decides
+        hooked = fixed.grasp == "lazy_closure" and touched is False
+        if touched is not None and (hooked or not robot.grasp_touches(shape)):
             # ... and a grasp with play has it taken up: closing sweeps the handle to one side
             # of the play, the manipulation's first step would strike it across the rest
             d0 = unit(np.asarray(fixed.initial_direction, dtype=float))
