@@ -28,7 +28,8 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
    (`SequenceConfig.take_up`): closing leaves the handle on the far side of the play, and the
    manipulation's first step would strike it. So has a hook (lazy closure) that closing left
    untouched (the Jaco's fingers curl to a fixed angle: whether they touch the bar depends on
-   where it sits in the hook); it must touch after that.
+   where it sits in the hook); it must then touch it, or have felt it bear on the hand in
+   the take-up.
 6. manipulate: the executor (control/executor.py) with the corrected skill's estimates in
    charge, exactly as `lfo.execute` runs it, without the simulator's task monitor.
 7. release: the wrist rests where it is, the hand opens to the shape it came in with (a way
@@ -542,6 +543,8 @@ def _run_phases(
                 return _fail(robot, record, phase, m.outcome, m.reason)
             robot.hold()
             touched = rest(robot.commanded_pose())
+            if touched is not None:  # the wrist felt the handle bear on the hand: it is held
+                touched = touched or m.outcome == "contact"
     if touched is None:
         return _fail(robot, record, phase, "nan", "the wrench reading is not finite")
     # a press stays commanded: the executor starts from the pressing setpoint (as at reset)
