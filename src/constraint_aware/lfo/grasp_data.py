@@ -418,8 +418,9 @@ def _append_second_look(
     rows["views"].append(SECOND_LOOK)
 
 
-#: Looks at a scene from a dataset's head crops: (robot, crop frame, head crop) -> the look
-#: point (3,) [m] and approach (3,), None for none (the benchmark: a recognizer's answer).
+#: Where a second look aims from a head crop: (robot, crop frame, height map, handle shape)
+#: -> the look point (3,) [m] and approach (3,), or None for no look (the benchmark: the
+#: recognizer's answer for the crop, as the sequence aims its wrist camera).
 LookFrom = Callable[[str, GraspFrame, FloatArray, str], tuple[FloatArray, FloatArray] | None]
 
 
