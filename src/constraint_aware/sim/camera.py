@@ -507,7 +507,8 @@ class DepthCamera:
                 self._renderer.disable_depth_rendering()
                 self._renderer.enable_segmentation_rendering()
                 try:
-                    geoms = np.asarray(self._renderer.render()[..., 0], dtype=np.int32)
+                    seg = np.asarray(self._renderer.render(), dtype=np.int32)  # (id, type)
+                    geoms = np.where(seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM), seg[..., 0], -1)
                 finally:
                     self._renderer.disable_segmentation_rendering()
                     self._renderer.enable_depth_rendering()
