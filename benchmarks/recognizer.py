@@ -17,7 +17,8 @@ The execution sequence looks twice: the CNN's answer for a head crop aims the wr
 (lfo.perception.WRIST_CAMERAS) from its look pose, and the head and wrist images together are
 recognized again (lfo.grasp_data.second_look_rows; the hand itself is not in these scenes).
 The `cnn, second look` rows score that second answer, one per head crop: the grasp the
-sequence goes to.
+sequence goes to; `geometric, second look` the baseline's own pipeline (its second looks
+aimed by its first answers; a crop it does not answer for gets none).
 Also, as a further row per kind in the same table (`demonstration`), what the recognizers
 start from: the demonstrated point's own distance from the contact point and the nominal
 approach's error. `--kinds`: those kinds' scenes only (the same scenes as in the full set);
@@ -42,6 +43,7 @@ from constraint_aware.lfo.grasp_data import (
     SECOND_LOOK,
     SEEN_SHARE,
     GraspDataset,
+    LookFrom,
     generate,
 )
 from constraint_aware.lfo.grasp_training import (
@@ -55,6 +57,7 @@ from constraint_aware.recognizer import (
     GeometricRecognizer,
     GraspFrame,
     RecognitionError,
+    Recognizer,
 )
 from constraint_aware.sim.camera import NO_NOISE
 from constraint_aware.sim.tasks import KINDS
@@ -63,6 +66,7 @@ HERE = Path(__file__).parent
 TARGETS = {"median_mm": 5.0, "p95_mm": 15.0, "approach_p95_deg": 10.0}
 CROPS_PER_SCENE = 8  # lfo.grasp_data.generate's default: 4 crops per view, 2 robots' cameras
 SECOND_LOOK_METHOD = "cnn, second look"
+BASELINE_SECOND_LOOK = "geometric, second look"
 
 
 def _f(x: float | None) -> str:
@@ -114,35 +118,46 @@ def main() -> None:
     start = time.perf_counter()
     kinds_asked = tuple(k for k in args.kinds.split(",") if k)
     cnn = ContactPointRecognizer.load()
+    baseline = GeometricRecognizer()
 
-    def look_from(
-        robot: str, frame: GraspFrame, height: np.ndarray, shape: str
-    ) -> tuple[np.ndarray, np.ndarray] | None:
-        try:
-            found = cnn.recognize(np.asarray(height, dtype=float), frame, shape)
-        except RecognitionError:
-            return None  # the sequence stops before it looks again
-        return found.contact_point, found.approach
+    def aimed_by(found: Recognizer) -> LookFrom:
+        """Second looks where `found` answers for each head crop, as the sequence aims."""
 
-    everything = (
-        GraspDataset.load(args.data)
-        if args.data
-        else generate(
+        def look_from(
+            robot: str, frame: GraspFrame, height: np.ndarray, shape: str
+        ) -> tuple[np.ndarray, np.ndarray] | None:
+            try:
+                r = found.recognize(np.asarray(height, dtype=float), frame, shape)
+            except RecognitionError:
+                return None  # the sequence stops before it looks again
+            return r.contact_point, r.approach
+
+        return look_from
+
+    def rendered(aim: Recognizer) -> GraspDataset:
+        return generate(
             args.scenes,
             seed=args.seed,
             kinds=kinds_asked,
             distractors=not args.no_distractors,
             noise=NO_NOISE if args.noiseless else None,
-            look_from=look_from,
+            look_from=aimed_by(aim),
         )
-    )
+
+    everything = GraspDataset.load(args.data) if args.data else rendered(cnn)
     generated = time.perf_counter() - start
     data = everything.select(everything.views == HEAD)
     looked = everything.select(everything.views == SECOND_LOOK)
-    scores = {found.name: score(found, data) for found in (cnn, GeometricRecognizer())}
+    scores = {found.name: score(found, data) for found in (cnn, baseline)}
     tables = {name: s.table() for name, s in scores.items()}
     if len(looked):
         tables[SECOND_LOOK_METHOD] = score(cnn, looked).table()
+        # the baseline's own pipeline: its second looks where its first answers aim (the
+        # same scenes and head crops: the head crops are drawn before any second look)
+        again = rendered(baseline)
+        tables[BASELINE_SECOND_LOOK] = score(
+            baseline, again.select(again.views == SECOND_LOOK)
+        ).table()
     seen = np.asarray(data.contact_visible) >= SEEN_SHARE  # the truth, for scoring only
     seen_tables = {f"{name}, handle seen": s.subset(seen).table() for name, s in scores.items()}
     kinds = list(dict.fromkeys(data.kinds.tolist()))
