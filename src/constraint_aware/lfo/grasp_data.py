@@ -46,7 +46,6 @@ from constraint_aware.sim.camera import (
     CameraMount,
     CameraPose,
     DepthCamera,
-    DepthImage,
     DepthNoise,
     add_camera,
     region_of_interest,
@@ -384,38 +383,42 @@ def second_look_rows(
             wrist = renderers[robot]
             mount = dataclasses.replace(wrist.mount, pose=wrist.pose(data))
             image = wrist.capture(data, rng, region_of_interest(mount, crop_corners(frame)))
-            _append_second_look(rows, scene, robot, frame, heads[robot], image, model, data, mount)
+            points = np.concatenate([heads[robot], image.points()])
+            seen = handle_visibility(model, data, mount)
+            _append_crop(rows, scene, robot, frame, points, SECOND_LOOK, seen, model, data, mount)
     finally:
         for wrist in renderers.values():
             wrist.close()
     return rows
 
 
-def _append_second_look(
+def _append_crop(
     rows: dict[str, list[Any]],
     scene: DrawnScene,
     robot: str,
     frame: GraspFrame,
-    head: FloatArray,
-    image: DepthImage,
+    points: FloatArray,
+    view: str,
+    visible: float,
     model: mujoco.MjModel,
     data: mujoco.MjData,
     mount: CameraMount,
 ) -> None:
-    """One second-look crop and its labels onto `rows`."""
-    points = np.concatenate([head, image.points()])
-    truth, truth_approach = contact_label(scene.place.task, scene.shape, frame.origin)
+    """One crop of `points` (N, 3) [m] in `frame` and its labels onto `rows` (`GraspDataset`'s
+    fields): the truth at the frame's origin, `visible` the handle's share its camera (at
+    `mount`) sees, the contact point's surroundings' share measured here."""
+    truth, approach = contact_label(scene.place.task, scene.shape, frame.origin)
     rows["heights"].append(depth_crop(points, frame).astype(np.float32))
     rows["shapes"].append(HANDLE_SHAPES.index(scene.shape))
     rows["points"].append(frame.to_local(truth[None])[0])
-    rows["approaches"].append(frame.rotation.T @ truth_approach)
+    rows["approaches"].append(frame.rotation.T @ approach)
     rows["kinds"].append(scene.place.kind)
     rows["robots"].append(robot)
     rows["offsets"].append(float(np.linalg.norm(frame.origin - truth)))
-    rows["nominal_errors"].append(float(angle_deg(frame.rotation[:, 2], truth_approach)))
-    rows["visible"].append(handle_visibility(model, data, mount))
+    rows["nominal_errors"].append(float(angle_deg(frame.rotation[:, 2], approach)))
+    rows["visible"].append(visible)
     rows["contact_visible"].append(handle_visibility(model, data, mount, around=truth))
-    rows["views"].append(SECOND_LOOK)
+    rows["views"].append(view)
 
 
 #: Where a second look aims from a head crop: (robot, crop frame, height map, handle shape)
@@ -470,18 +473,7 @@ def scene_samples(
         visible = handle_visibility(model, data, mount)
         for origin in origins:
             frame = GraspFrame(np.asarray(origin), frame0.rotation)
-            truth, approach = contact_label(scene.place.task, scene.shape, frame.origin)
-            rows["heights"].append(depth_crop(points, frame).astype(np.float32))
-            rows["shapes"].append(HANDLE_SHAPES.index(scene.shape))
-            rows["points"].append(frame.to_local(truth[None])[0])
-            rows["approaches"].append(frame.rotation.T @ approach)
-            rows["kinds"].append(kind)
-            rows["robots"].append(robot)
-            rows["offsets"].append(float(np.linalg.norm(frame.origin - truth)))
-            rows["nominal_errors"].append(float(angle_deg(frame.rotation[:, 2], approach)))
-            rows["visible"].append(visible)
-            rows["contact_visible"].append(handle_visibility(model, data, mount, around=truth))
-            rows["views"].append(HEAD)
+            _append_crop(rows, scene, robot, frame, points, HEAD, visible, model, data, mount)
         heads[robot] = points
     looks: list[tuple[str, FloatArray, FloatArray]] = []
     for robot in robots:
