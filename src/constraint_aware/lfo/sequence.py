@@ -401,15 +401,19 @@ def _run_phases(
         return _fail(robot, record, phase, "not_recognized", str(exc))
     shape = seen.shape
 
-    def plan(found: Perception) -> tuple[SkillParameters, FloatArray, Rotation, Pose, Pose]:
-        """The corrected skill, approach, hand orientation, grasp and pre-grasp of a
-        recognition, the robot told what it now believes."""
+    def plan(
+        found: Perception,
+    ) -> tuple[SkillParameters, TaskConfig, FloatArray, Rotation, Pose, Pose]:
+        """The corrected skill, the object it describes, approach, hand orientation, grasp and
+        pre-grasp of a recognition, the robot told what it now believes."""
         fixed = corrected_skill(skill, found.recognition)
+        believed = scene_from_skill(fixed).task
         approach = np.asarray(found.recognition.approach, dtype=float)
         orientation = grasp_orientation(fixed, approach)
         grasp = robot.grasp_pose_at(found.recognition.contact_point, orientation, shape)
-        robot.believe(scene_from_skill(fixed).task, 0.0)
-        return fixed, approach, orientation, grasp, grasp.moved(-cfg.pre_grasp * approach)
+        robot.believe(believed, 0.0)
+        pre = grasp.moved(-cfg.pre_grasp * approach)
+        return fixed, believed, approach, orientation, grasp, pre
 
     def found(perception: Perception, grasp: Pose) -> dict[str, Any]:
         return {
@@ -419,7 +423,7 @@ def _run_phases(
             "grasp_tool_point": [float(v) for v in grasp.position],
         }
 
-    fixed, approach, orientation, grasp, pre = plan(seen)
+    fixed, believed, approach, orientation, grasp, pre = plan(seen)
     phase.details.update(
         shape=shape, demonstrated_point=[float(v) for v in seen.frame.origin], **found(seen, grasp)
     )
@@ -459,7 +463,7 @@ def _run_phases(
             again = perceive_again(seen, [image, wrist[1]()], recognizer)
         except RecognitionError as exc:
             return _fail(robot, record, phase, "not_recognized", str(exc))
-        fixed, approach, orientation, grasp, pre = plan(again)
+        fixed, believed, approach, orientation, grasp, pre = plan(again)
         shift = np.asarray(again.recognition.contact_point) - seen.recognition.contact_point
         phase.details.update(
             wrist_camera=True, shift_mm=1000.0 * float(np.linalg.norm(shift)),
@@ -469,7 +473,6 @@ def _run_phases(
         m = move(phase, straight_line(here, pre, cfg.reach, robot.control_period), cfg.reach)
         if not m.ok:
             return _fail(robot, record, phase, m.outcome, m.reason)
-    believed = scene_from_skill(fixed).task
     done(phase)
 
     # 4. approach
