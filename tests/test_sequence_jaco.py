@@ -189,3 +189,32 @@ def test_leaving_a_pressed_knob_is_not_a_contact() -> None:
     retreat = record.phase("retreat")
     assert retreat.outcome == "ok", retreat.reason
     assert retreat.peak_force < SequenceConfig().leave.contact_limit
+
+
+def test_the_approach_turns_the_hand_to_the_grasp_before_contact() -> None:
+    # the Jaco's wrist (5 N m/rad against its joints' dry friction) arrives from the reach
+    # some degrees off the grasp's orientation; a fist pressed on a plate keeps that tilt,
+    # so the approach turns the hand back before it touches
+    from constraint_aware.geometry import angle_deg
+    from constraint_aware.lfo.sequence import run_in_simulation
+    from constraint_aware.policy import ConstraintAwarePolicy
+
+    place, skill = _placed("plate", 0)
+    tilt: list[float] = []
+
+    def on_phase(name: str, sim: Any) -> None:
+        if name == "grasp":  # scoring only: the true grasp's axis against the hand's
+            axis = np.array([0.0, 0.0, 1.0])
+            grasp, hand = sim.grasp_pose(), sim.read_pose()
+            tilt.append(
+                float(angle_deg(grasp.orientation.apply(axis), hand.orientation.apply(axis)))
+            )
+
+    record = run_in_simulation(
+        skill, place.task, "jaco", policy=ConstraintAwarePolicy.load(), seed=0, on_phase=on_phase
+    ).record
+    assert record.success, record.reason
+    errors = record.phase("approach").details["hand_turn_error_deg"]
+    assert errors[0] > 3.0  # arrived turned
+    assert errors[-1] < errors[0] / 2
+    assert tilt[0] < 2.5  # 5.2 deg without the turn

@@ -17,9 +17,12 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
    the object's own edge); the skill is corrected by the second recognition and the hand
    moves to its pre-grasp. Straight lines, no contact allowed. Without a wrist camera the
    phase keeps the first recognition and says so in the record's notes.
-4. approach: in along the approach to the grasp; a force above the contact limit stops it:
-   near the grasp as contact, earlier as a failure. Passive closures (plate, knob) aim
-   `overshoot` past the perceived surface and stop at contact.
+4. approach: in along the approach to `contact_zone` before the grasp; there the hand is
+   turned to the grasp's orientation (`align`: a compliant wrist with dry friction in its
+   joints arrives some degrees off, and keeps what it is not turned out of); then on to the
+   grasp. A force above the contact limit stops it: near the grasp as contact, earlier as a
+   failure. Passive closures (plate, knob) aim `overshoot` past the perceived surface and
+   stop at contact.
 5. grasp: the hand closes by the force-exertion type; a passive closure presses
    `press_depth` on; the wrist then rests where it settled (no preload) and the hand must
    report contact, unless it holds the handle with play (`grasp_touches`: the hook hand's
@@ -70,7 +73,7 @@ from constraint_aware.control.executor import Executor
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.record import RunRecord
 from constraint_aware.control.robot import request_hold
-from constraint_aware.errors import CapError, UnknownNameError, check_number
+from constraint_aware.errors import CapError, UnknownNameError, check_int, check_number
 from constraint_aware.geometry import FloatArray, unit
 from constraint_aware.lfo.infer import SkillParameters
 from constraint_aware.lfo.manipulation import SENSOR_NOISE, goal_label, manipulation_setup
@@ -127,6 +130,11 @@ class SequenceConfig:
     pre_grasp: float = 0.10  # [m] back from the grasp along the approach
     overshoot: float = 0.012  # [m] passive closures aim this far past the surface
     contact_zone: float = 0.02  # [m] contact within this of the grasp counts as arrival
+    # where the approach enters the contact zone the hand is turned to the grasp's
+    # orientation: the setpoint is turned by the remaining error, at most `align_tries` times
+    # (each resting `settle_time`), until the hand is within `align_tolerance`
+    align_tolerance: float = 0.5  # [deg]
+    align_tries: int = 4
     retreat: float = 0.10  # [m] back along the approach after release
     reach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.06))
     # a grasp with play (the hook around a bar) takes it up before the manipulation: slowly
@@ -154,6 +162,8 @@ class SequenceConfig:
                      "hook_home_back", "hook_home_up", "jaco_home_up"):  # fmt: skip
             check_number(f"SequenceConfig.{name}", getattr(self, name), low=0.0, unit="m")
         check_number("SequenceConfig.jaco_home_forward", self.jaco_home_forward, unit="m")
+        check_number("SequenceConfig.align_tolerance", self.align_tolerance, low=0.0, unit="deg")
+        check_int("SequenceConfig.align_tries", self.align_tries, low=0)
 
 
 @dataclass
@@ -415,6 +425,48 @@ def _run_phases(
         pre = grasp.moved(-cfg.pre_grasp * approach)
         return fixed, believed, approach, orientation, grasp, pre
 
+    def align(phase: PhaseRecord, orientation: Rotation) -> tuple[Rotation, str, str]:
+        """Turn the hand to `orientation` where it is: the setpoint turned (at the approach's
+        turn rate) by the hand's remaining error and held `settle_time`, the setpoint's
+        earlier turns kept (a hold would drop them and the joints' friction keep the hand);
+        returns the setpoint's turn from `orientation`, and an outcome and reason: "ok", or a
+        force above the approach's contact limit or a reading that is not finite."""
+        turn = Rotation.identity()
+        settle = max(1, round(robot.settle_time / robot.control_period))
+        base = np.asarray(robot.read_wrench().force, dtype=float)
+        errors: list[float] = []
+        phase.details["hand_turn_error_deg"] = errors
+        for attempt in range(cfg.align_tries + 1):
+            error = orientation * robot.read_pose().orientation.inv()
+            errors.append(math.degrees(error.magnitude()))
+            if errors[-1] <= cfg.align_tolerance or attempt == cfg.align_tries:
+                break
+            turn = error * turn
+            here = robot.commanded_pose()
+            target = Pose(here.position, turn * orientation)
+            path = straight_line(here, target, cfg.approach, robot.control_period)
+            for waypoint in path + [Waypoint(target)] * settle:
+                robot.command_pose(waypoint.pose)
+                robot.advance()
+                phase.periods += 1
+                if on_period is not None:
+                    on_period()
+                force = np.asarray(robot.read_wrench().force, dtype=float)
+                if not np.all(np.isfinite(force)):
+                    return turn, "nan", "the wrench reading is not finite"
+                change = float(np.linalg.norm(force - base))
+                phase.peak_force = max(phase.peak_force, change)
+                if change > cfg.approach.contact_limit:
+                    return (
+                        turn,
+                        "force_limit",
+                        (
+                            f"unexpected contact while turning the hand: |F - F_0| {change:.1f} N "
+                            f"above {cfg.approach.contact_limit:g} N"
+                        ),
+                    )
+        return turn, "ok", ""
+
     def found(perception: Perception, grasp: Pose) -> dict[str, Any]:
         return {
             "method": perception.recognition.method,
@@ -479,7 +531,16 @@ def _run_phases(
     phase = record.phase("approach")
     phase.outcome = "running"
     passive = robot.press_depth(shape) > 0.0
+    near = grasp.moved(-cfg.contact_zone * approach)
+    m = move(phase, straight_line(robot.commanded_pose(), near, cfg.approach,
+                                  robot.control_period), cfg.approach)  # fmt: skip
+    if not m.ok:
+        return _fail(robot, record, phase, m.outcome, m.reason)
+    turn, outcome, reason = align(phase, orientation)
+    if outcome != "ok":
+        return _fail(robot, record, phase, outcome, reason)
     goal = grasp.moved(cfg.overshoot * approach) if passive else grasp
+    goal = Pose(goal.position, turn * goal.orientation)
     path = straight_line(robot.commanded_pose(), goal, cfg.approach, robot.control_period)
     zone = cfg.contact_zone + (cfg.overshoot if passive else 0.0)
     along = [float((w.pose.position - grasp.position) @ approach) for w in path]
