@@ -554,3 +554,18 @@ def test_object_force_is_the_force_on_the_hand_from_outside(robot: str) -> None:
         np.testing.assert_allclose(sim.object_force(), applied, atol=0.01)
     finally:
         sim.model.opt.disableflags = flags
+
+
+def test_the_jacos_grasp_pose_leaves_the_episode_untouched() -> None:
+    # scoring reads the grasp pose mid-episode; measuring the hand's extent must not pose the
+    # fingers of the running simulation
+    sim = JacoSim(task_config("plate-sliding"))
+    sim.reset()
+    sim.set_fingers(0.2)
+    sim._step(200)
+    qpos = sim.data.qpos.copy()
+    first = sim.grasp_pose()
+    assert np.array_equal(sim.data.qpos, qpos)
+    again = sim.grasp_pose_at(first.position, first.orientation, "knob")
+    assert np.array_equal(sim.data.qpos, qpos)
+    assert np.all(np.isfinite(again.position))

@@ -534,9 +534,9 @@ class JacoSim(Embodiment):
 
     def _hand_extent(self, finger_angle: float, palm_only: bool = False) -> float:
         """[m] how far the hand (or its palm alone) reaches along its approach axis beyond the
-        tool point with the fingers at `finger_angle` (mesh vertices; the data is left in an
-        arbitrary state)."""
-        m, d = self.model, self.data
+        tool point with the fingers at `finger_angle` (mesh vertices, posed on a scratch copy
+        of the state: the episode's is untouched)."""
+        m, d = self.model, mujoco.MjData(self.model)
         d.qpos[self._finger_qpos] = finger_angle
         mujoco.mj_kinematics(m, d)
         tcp = self._tcp_site
@@ -572,12 +572,7 @@ class JacoSim(Embodiment):
         kind = JACO_GRASPS[handle]
         pos = np.array(point, dtype=float)
         if kind.contact != "centre":
-            episode = self.data
-            self.data = mujoco.MjData(self.model)
-            try:
-                reach = self._hand_extent(kind.finger_start, palm_only=kind.contact == "palm")
-            finally:
-                self.data = episode
+            reach = self._hand_extent(kind.finger_start, palm_only=kind.contact == "palm")
             pos = pos - orientation.apply([0.0, 0.0, reach])
         return Pose(pos, orientation)
 
