@@ -1,10 +1,10 @@
 """How much faster does a simulated episode run than at the commit the speed targets were set
 against (e189ca9), measured the way that commit measured it, in one run?
 
-    nice -n 10 python benchmarks/studies/realtime_vs_filing.py \
-        --trees filed=OLD/src,now=NEW/src [--rounds 3] [--repeats 3] [--out FILE]
+    nice -n 10 python benchmarks/studies/realtime_vs_baseline.py \
+        --trees baseline=OLD/src,now=NEW/src [--rounds 3] [--repeats 3] [--out FILE]
 
-OLD is a checkout of e189ca9 (`git worktree add --detach /tmp/filed e189ca9`), NEW one of the
+OLD is a checkout of e189ca9 (`git worktree add --detach /tmp/baseline e189ca9`), NEW one of the
 code to measure. The targets (60x real time on the hook hand, 30x on the Jaco) were set when
 that commit's benchmarks/sim_speed.py read 20-24x and 11-12x; the machine's speed has moved
 since (the same commit reads 14x and 7x on a busy hour), so only a ratio measured in one run
@@ -45,7 +45,7 @@ import numpy as np
 
 STEPS = 30
 ROBOTS = ("hook-hand", "jaco")
-DEFAULT_OUT = Path(__file__).parent / "results" / "realtime_vs_filing.json"
+DEFAULT_OUT = Path(__file__).parent / "results" / "realtime_vs_baseline.json"
 
 
 def _guards_off() -> dict[str, object]:
@@ -175,7 +175,7 @@ def compare(trees: dict[str, str], rounds: int, repeats: int) -> dict[str, Any]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--trees", help="NAME=SRC,NAME=SRC: the filed commit's src first")
+    parser.add_argument("--trees", help="NAME=SRC,NAME=SRC: the baseline commit's src first")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
@@ -190,7 +190,7 @@ def main() -> None:
 
     trees = trees_from_args(parser, args)
     if len(trees) < 2:
-        parser.error("--trees: two or more, the filed commit's first")
+        parser.error("--trees: two or more, the baseline commit's first")
     write_results(args.out, compare(trees, args.rounds, args.repeats))
     print(args.out)
 
