@@ -425,6 +425,19 @@ def _run_phases(
         pre = grasp.moved(-cfg.pre_grasp * approach)
         return fixed, believed, approach, orientation, grasp, pre
 
+    settle = max(1, round(robot.settle_time / robot.control_period))
+
+    def tick(phase: PhaseRecord, target: Pose) -> FloatArray | None:
+        """Command `target` for one control period; the wrench's force (3,) [N] after it,
+        None when it is not finite."""
+        robot.command_pose(target)
+        robot.advance()
+        phase.periods += 1
+        if on_period is not None:
+            on_period()
+        force = np.asarray(robot.read_wrench().force, dtype=float)
+        return force if np.all(np.isfinite(force)) else None
+
     def align(phase: PhaseRecord, orientation: Rotation) -> tuple[Rotation, str, str]:
         """Turn the hand to `orientation` where it is: the setpoint turned (at the approach's
         turn rate) by the hand's remaining error and held `settle_time`, the setpoint's
@@ -432,7 +445,6 @@ def _run_phases(
         returns the setpoint's turn from `orientation`, and an outcome and reason: "ok", or a
         force above the approach's contact limit or a reading that is not finite."""
         turn = Rotation.identity()
-        settle = max(1, round(robot.settle_time / robot.control_period))
         base = np.asarray(robot.read_wrench().force, dtype=float)
         errors: list[float] = []
         phase.details["hand_turn_error_deg"] = errors
@@ -446,25 +458,15 @@ def _run_phases(
             target = Pose(here.position, turn * orientation)
             path = straight_line(here, target, cfg.approach, robot.control_period)
             for waypoint in path + [Waypoint(target)] * settle:
-                robot.command_pose(waypoint.pose)
-                robot.advance()
-                phase.periods += 1
-                if on_period is not None:
-                    on_period()
-                force = np.asarray(robot.read_wrench().force, dtype=float)
-                if not np.all(np.isfinite(force)):
+                force = tick(phase, waypoint.pose)
+                if force is None:
                     return turn, "nan", "the wrench reading is not finite"
                 change = float(np.linalg.norm(force - base))
                 phase.peak_force = max(phase.peak_force, change)
                 if change > cfg.approach.contact_limit:
-                    return (
-                        turn,
-                        "force_limit",
-                        (
-                            f"unexpected contact while turning the hand: |F - F_0| {change:.1f} N "
-                            f"above {cfg.approach.contact_limit:g} N"
-                        ),
-                    )
+                    limit = cfg.approach.contact_limit
+                    why = f"unexpected contact while turning the hand: |F - F_0| {change:.1f} N"
+                    return turn, "force_limit", f"{why} above {limit:g} N"
         return turn, "ok", ""
 
     def found(perception: Perception, grasp: Pose) -> dict[str, Any]:
@@ -567,20 +569,13 @@ def _run_phases(
         target = here.moved(press * _hand_axis(here))
     else:  # the hand stays at the grasp while the fingers close around the handle
         target = grasp
-    settle = max(1, round(robot.settle_time / robot.control_period))
 
     def rest(target: Pose) -> bool | None:
         """Command `target` for `settle` periods: whether the hand touched the handle (None:
         a reading was not finite)."""
         touched = False
         for _ in range(settle):
-            robot.command_pose(target)
-            robot.advance()
-            phase.periods += 1
-            if on_period is not None:
-                on_period()
-            force = np.asarray(robot.read_wrench().force, dtype=float)
-            if not np.all(np.isfinite(force)):
+            if tick(phase, target) is None:
                 return None
             touched = touched or bool(robot.grasp_contact())
         return touched
