@@ -134,6 +134,16 @@ def straight_line(start: Pose, goal: Pose, config: MoveConfig, period: float) ->
     ]
 
 
+def advance_period(robot: Robot, on_period: Callable[[], None] | None = None) -> FloatArray | None:
+    """Advance `robot` one control period (then call `on_period`); the wrench's force (3,)
+    [N] after it, None when it is not finite."""
+    robot.advance()
+    if on_period is not None:
+        on_period()
+    force = np.asarray(robot.read_wrench().force, dtype=float)
+    return force if np.all(np.isfinite(force)) else None
+
+
 def _finite_pose(pose: Pose) -> bool:
     return bool(
         np.all(np.isfinite(pose.position)) and np.all(np.isfinite(pose.orientation.as_quat()))
@@ -191,12 +201,9 @@ def _run(
     samples: list[FloatArray] = []
     for _ in range(cfg.offset_samples):
         robot.command_pose(hold_pose)
-        robot.advance()
+        force = advance_period(robot, on_period)
         record.periods += 1
-        if on_period is not None:
-            on_period()
-        force = np.asarray(robot.read_wrench().force, dtype=float)
-        if not np.all(np.isfinite(force)):
+        if force is None:
             return _stop(robot, record, "nan", "the wrench reading is not finite (holding)")
         samples.append(force)
     offset = np.mean(samples, axis=0)
@@ -240,13 +247,11 @@ def _run(
                 set_posture(waypoint.posture)
             robot.command_pose(target)
             last = target.position
-        robot.advance()
+        reading = advance_period(robot, on_period)
         record.periods += 1
-        if on_period is not None:
-            on_period()
-        force = np.asarray(robot.read_wrench().force, dtype=float) - offset
-        if not np.all(np.isfinite(force)):
+        if reading is None:
             return _stop(robot, record, "nan", f"the wrench reading is not finite at period {i}")
+        force = reading - offset
         magnitude = float(np.linalg.norm(force))
         record.peak_force = max(record.peak_force, magnitude)
         pose = robot.read_pose()

@@ -65,6 +65,7 @@ from constraint_aware.control.approach import (
     MoveConfig,
     MoveRecord,
     Waypoint,
+    advance_period,
     guarded_move,
     straight_line,
 )
@@ -431,12 +432,8 @@ def _run_phases(
         """Command `target` for one control period; the wrench's force (3,) [N] after it,
         None when it is not finite."""
         robot.command_pose(target)
-        robot.advance()
         phase.periods += 1
-        if on_period is not None:
-            on_period()
-        force = np.asarray(robot.read_wrench().force, dtype=float)
-        return force if np.all(np.isfinite(force)) else None
+        return advance_period(robot, on_period)
 
     def align(phase: PhaseRecord, orientation: Rotation) -> tuple[Rotation, str, str]:
         """Turn the hand to `orientation` where it is: the setpoint turned (at the approach's
