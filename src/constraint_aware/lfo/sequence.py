@@ -18,8 +18,8 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
    moves to its pre-grasp. Straight lines, no contact allowed. Without a wrist camera the
    phase keeps the first recognition and says so in the record's notes.
 4. approach: in along the approach to `contact_zone` before the grasp; there the hand is
-   turned to the grasp's orientation (`align`: a compliant wrist with dry friction in its
-   joints arrives some degrees off, and keeps what it is not turned out of); then on to the
+   turned to the grasp's orientation (a compliant wrist with dry friction in its joints
+   arrives some degrees off, and keeps what it is not turned out of); then on to the
    grasp. A force above the contact limit stops it: near the grasp as contact, earlier as a
    failure. Passive closures (plate, knob) aim `overshoot` past the perceived surface and
    stop at contact.
