@@ -316,11 +316,11 @@ def station_for(
 
 
 # --- the pipeline: demonstration, camera and robot only -------------------------------------
-def grasp_orientation(skill: SkillParameters, approach: FloatArray) -> Rotation:
-    """The hand's orientation at the grasp: the hand mount of the object built from the
-    (corrected) skill, turned by the least rotation that takes its approach onto the
+def grasp_orientation(believed: TaskConfig, approach: FloatArray) -> Rotation:
+    """The hand's orientation at the grasp: the hand mount of the `believed` object (built
+    from the corrected skill), turned by the least rotation that takes its approach onto the
     recognized `approach` (3,)."""
-    mount = Rotation.from_matrix(np.asarray(scene_from_skill(skill).task.hand_mount()))
+    mount = Rotation.from_matrix(np.asarray(believed.hand_mount()))
     z = mount.apply([0.0, 0.0, 1.0])
     a = unit(np.asarray(approach, dtype=float))
     axis = np.cross(z, a)
@@ -420,7 +420,7 @@ def _run_phases(
         fixed = corrected_skill(skill, found.recognition)
         believed = scene_from_skill(fixed).task
         approach = np.asarray(found.recognition.approach, dtype=float)
-        orientation = grasp_orientation(fixed, approach)
+        orientation = grasp_orientation(believed, approach)
         grasp = robot.grasp_pose_at(found.recognition.contact_point, orientation, shape)
         robot.believe(believed, 0.0)
         pre = grasp.moved(-cfg.pre_grasp * approach)
