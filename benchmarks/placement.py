@@ -51,10 +51,13 @@ def end_to_end(args: argparse.Namespace) -> None:
         tele = "-" if run.teleported_peak_N is None else f"{run.teleported_peak_N:.1f}"
         true = _f(run.object_force_peak_N)
         true_tele = _f(run.teleported_object_force_peak_N)
+        own_true = _f(run.own_teleported_object_force_peak_N)
+        own = f"{_f(run.own_teleported_peak_N)} N, true {own_true}"
         print(
             f"{run.robot} {run.kind} {run.index}: {run.outcome} "
             f"({run.failed_phase or 'all phases'}), peak {peak} N, true {true} N (teleported "
-            f"{run.teleported_outcome}, {tele} N, true {true_tele} N), {run.wall_time_s:.0f} s",
+            f"{run.teleported_outcome}, {tele} N, true {true_tele} N; same skill {own} N), "
+            f"{run.wall_time_s:.0f} s",
             flush=True,
         )
 

@@ -389,7 +389,7 @@ def test_a_teleported_lid_tares_part_of_its_weight_the_true_force_does_not() -> 
     from constraint_aware.bench.endtoend import run_end_to_end
 
     run = run_end_to_end(1, ("hook-hand",), kinds=("lid",)).runs[0]
-    assert run.success and run.teleported_success
+    assert run.success and run.teleported_success and run.own_teleported_success
     assert run.manipulation_peak_N is not None and run.teleported_peak_N is not None
     assert run.object_force_peak_N is not None and run.teleported_object_force_peak_N is not None
     tare_gap = run.manipulation_peak_N - run.teleported_peak_N

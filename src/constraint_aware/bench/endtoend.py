@@ -10,7 +10,8 @@ simulated object reaches the pipeline; the task monitor scores afterwards (the o
 progress at the end of the manipulation, the recognizer's error against the true contact
 point). Beside it, on the same placement, today's run with the hand placed at the grasp
 (`lfo.execute.execute`) from the placement benchmark's demonstration (no offset), for the
-peak-force comparison.
+peak-force comparison, and the run placed at the grasp with the skill the sequence's
+manipulation used: the same estimates, so that the start alone differs.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from constraint_aware.lfo.synthetic import (
     random_placement,
 )
 from constraint_aware.policy import ConstraintAwarePolicy
-from constraint_aware.recognizer import Recognizer, make_recognizer
+from constraint_aware.recognizer import Recognition, Recognizer, make_recognizer
 from constraint_aware.sim.tasks import KINDS
 
 NOISE = 0.005  # [m] tracking noise, as the placement benchmark's
@@ -72,6 +73,11 @@ class SequenceRun:
     teleported_object_force_peak_N: float | None = None
     # the head camera's recognition alone (before the wrist camera's second look)
     first_contact_error_mm: float | None = None
+    # the teleported run with the skill the sequence's manipulation ran with (its own
+    # demonstration, corrected by what it recognized): the start alone differs
+    own_teleported_success: bool | None = None
+    own_teleported_peak_N: float | None = None
+    own_teleported_object_force_peak_N: float | None = None
 
 
 @dataclass
@@ -104,9 +110,12 @@ def one_sequence(
     policy: ConstraintAwarePolicy | None,
     recognizer: Recognizer,
     seed: int,
-) -> SequenceRun:
-    """The sequence on `place` from `skill`, scored afterwards against the truth."""
+) -> tuple[SequenceRun, Any]:
+    """The sequence on `place` from `skill`, scored afterwards against the truth, and the
+    skill its manipulation ran with (corrected by the recognized contact point; None when
+    nothing was recognized)."""
     from constraint_aware.lfo.grasp_data import contact_label
+    from constraint_aware.lfo.perception import corrected_skill
     from constraint_aware.lfo.sequence import run_in_simulation
 
     task = place.task
@@ -135,10 +144,11 @@ def one_sequence(
             on_phase=on_phase, on_period=on_period,
         )  # fmt: skip
     except CapError as exc:  # refused before moving (the station, an estimate)
-        return SequenceRun(
+        refused = SequenceRun(
             place.kind, robot, index, False, "station", "refused", str(exc), None, 0.0,
             place.goal, 0.0, offset, None, None, 0, wall_time_s=time.perf_counter() - start,
         )  # fmt: skip
+        return refused, None
     record = result.record
     sim = result.sim
     progress = seen.get("progress", float(type(sim).progress(sim)))
@@ -146,6 +156,12 @@ def one_sequence(
     look = record.phase("look").details
     final = look if "contact_point" in look else perceive  # what the hand went to
     contact_err = approach_err = first_err = None
+    used = None
+    if "contact_point" in final:
+        seen_at = Recognition(
+            np.asarray(final["contact_point"]), np.asarray(final["approach"]), final["method"]
+        )
+        used = corrected_skill(skill, seen_at)
     if "contact_point" in perceive:
         truth, approach = contact_label(task, perceive["shape"], np.asarray(skill.start_position))
         # the label of the configured object, moved to where its handle rested
@@ -158,7 +174,7 @@ def one_sequence(
         offset = 1000.0 * float(np.linalg.norm(np.asarray(skill.start_position) - truth))
     failed = record.phase(record.failed_phase) if record.failed_phase else None
     manipulation = record.manipulation
-    return SequenceRun(
+    scored = SequenceRun(
         place.kind, robot, index, record.success, record.failed_phase,
         "success" if record.success else (failed.outcome if failed else "error"),
         record.reason, None if manipulation is None else manipulation.peak_force,
@@ -166,6 +182,7 @@ def one_sequence(
         record.periods, wall_time_s=time.perf_counter() - start,
         object_force_peak_N=seen.get("object_force"), first_contact_error_mm=first_err,
     )  # fmt: skip
+    return scored, used
 
 
 def run_end_to_end(
@@ -198,9 +215,9 @@ def run_end_to_end(
             for i in range(per_kind):
                 place = random_placement(kind, np.random.default_rng([seed, k, i]))
                 skill = _demo_skill(place, np.random.default_rng([seed, k, i, 2]), HandOffset())
-                run = one_sequence(place, i, robot, skill, policy, found, i)
+                run, used = one_sequence(place, i, robot, skill, policy, found, i)
                 if teleported:
-                    run = _with_teleported(run, place, robot, policy, seed, k, i)
+                    run = _with_teleported(run, place, robot, policy, seed, k, i, used)
                 result.runs.append(run)
                 if progress is not None:
                     progress(run)
@@ -210,42 +227,75 @@ def run_end_to_end(
 
 def _with_teleported(
     run: SequenceRun, place: Placement, robot: str, policy: ConstraintAwarePolicy,
-    seed: int, k: int, i: int,
+    seed: int, k: int, i: int, used: Any,
 ) -> SequenceRun:  # fmt: skip
     """`run` with today's teleported run of the same placement (the placement benchmark's
-    demonstration and seed)."""
+    demonstration and seed) and, given the skill the sequence's manipulation `used`, the
+    teleported run of that skill: the same estimates, the start alone differs."""
+    today = _teleported(
+        _demo_skill(place, np.random.default_rng([seed, k, i, 1]), None), place, robot, policy, i
+    )
+    mine = _Teleported(None, None) if used is None else _teleported(used, place, robot, policy, i)
+    return dataclasses.replace(
+        run,
+        teleported_success=today.success,
+        teleported_peak_N=today.peak_N,
+        teleported_outcome=today.outcome,
+        teleported_object_force_peak_N=today.object_force_peak_N,
+        own_teleported_success=mine.success,
+        own_teleported_peak_N=mine.peak_N,
+        own_teleported_object_force_peak_N=mine.object_force_peak_N,
+    )
+
+
+@dataclass(frozen=True)
+class _Teleported:
+    success: bool | None  # None: not run
+    outcome: str | None
+    peak_N: float | None = None  # the executor's peak |F - F_d|
+    object_force_peak_N: float | None = None  # the true hand-object force's peak
+
+
+def _teleported(
+    skill: Any, place: Placement, robot: str, policy: ConstraintAwarePolicy, i: int
+) -> _Teleported:
+    """The run of `skill` with the hand placed at the grasp of `place`'s object (seed `i`)."""
     peak = [0.0]
 
     def on_period(sim: Any) -> None:
         peak[0] = max(peak[0], norm(sim.object_force()))
 
     try:
-        skill = _demo_skill(place, np.random.default_rng([seed, k, i, 1]), None)
         record, _ = execute(
             skill, "policy", seed=i, task=place.task, policy=policy, robot=robot,
             on_period=on_period,
         )  # fmt: skip
     except CapError as exc:
-        return dataclasses.replace(
-            run, teleported_success=False, teleported_outcome=f"refused: {exc}"[:120]
-        )
-    return dataclasses.replace(
-        run,
-        teleported_success=record.success,
-        teleported_peak_N=record.peak_force,
-        teleported_outcome=record.outcome,
-        teleported_object_force_peak_N=peak[0],
-    )
+        return _Teleported(False, f"refused: {exc}"[:120])
+    return _Teleported(record.success, record.outcome, record.peak_force, peak[0])
 
 
 def _median(values: list[float]) -> float | None:
     return float(np.median(values)) if values else None
 
 
+def _differences(runs: list[SequenceRun], mine: str, theirs: str) -> list[float]:
+    """`mine` - `theirs` (SequenceRun fields) over the runs where the sequence and the
+    teleported run of its own skill both succeeded and both were measured."""
+    out = []
+    for r in runs:
+        a, b = getattr(r, mine), getattr(r, theirs)
+        if r.success and r.own_teleported_success and a is not None and b is not None:
+            out.append(float(a - b))
+    return out
+
+
 def summarize(runs: list[SequenceRun]) -> list[dict[str, Any]]:
     """Per robot and kind (and per robot over all kinds): successes, failures by phase, peak
     |F| medians end to end and teleported and their median paired difference where both
-    succeeded, the same for the true hand-object force, the recognizer's errors, the true
+    succeeded, the same for the true hand-object force; the same two differences against the
+    teleported run of the sequence's own skill, and that run's true peak against today's (the
+    demonstration's share of the first difference); the recognizer's errors, the true
     shortfall."""
     out: list[dict[str, Any]] = []
     robots = list(dict.fromkeys(r.robot for r in runs))
@@ -272,6 +322,19 @@ def summarize(runs: list[SequenceRun]) -> list[dict[str, Any]]:
                 if r.object_force_peak_N is not None
                 and r.teleported_object_force_peak_N is not None
             ]
+            # the sequence against the teleported start of the same skill, and the teleported
+            # start's own change with the demonstration (today's against the sequence's skill)
+            own = _differences(mine, "manipulation_peak_N", "own_teleported_peak_N")
+            own_true = _differences(
+                mine, "object_force_peak_N", "own_teleported_object_force_peak_N"
+            )
+            demo_true = [
+                r.teleported_object_force_peak_N - r.own_teleported_object_force_peak_N
+                for r in mine
+                if r.teleported_success and r.own_teleported_success
+                and r.teleported_object_force_peak_N is not None
+                and r.own_teleported_object_force_peak_N is not None
+            ]  # fmt: skip
             contact = [r.contact_error_mm for r in mine if r.contact_error_mm is not None]
             first = [r.first_contact_error_mm for r in mine if r.first_contact_error_mm is not None]
             scale = 100.0 if kind in ("drawer", "plate", "pole", "window") else math.degrees(1)
@@ -304,6 +367,11 @@ def summarize(runs: list[SequenceRun]) -> list[dict[str, Any]]:
                     "object_force_peak_N_median": _median([a for a, _ in true_pairs]),
                     "teleported_object_force_peak_N_median": _median([b for _, b in true_pairs]),
                     "object_force_difference_N_median": _median([a - b for a, b in true_pairs]),
+                    "own_teleported_successes": sum(bool(r.own_teleported_success) for r in mine),
+                    "own_paired": len(own),
+                    "own_peak_difference_N_median": _median(own),
+                    "own_object_force_difference_N_median": _median(own_true),
+                    "demonstration_object_force_difference_N_median": _median(demo_true),
                     "contact_error_mm_median": _median(contact),
                     "contact_error_mm_p95": (
                         float(np.percentile(contact, 95)) if contact else None
@@ -347,9 +415,10 @@ def summary_table(summary: list[dict[str, Any]]) -> list[str]:
     lines = [
         "| robot | kind | success | failures by phase | peak F median [N] | teleported "
         "success | teleported peak F median [N] | paired peak difference median [N] | "
-        "paired true-force peak difference median [N] | contact error median / p95 [mm] | "
-        "head camera alone: median / p95 [mm] |",
-        "|---" * 11 + "|",
+        "paired true-force peak difference median [N] | same skill teleported: paired peak "
+        "/ true-force difference median [N] | today's teleported - same skill's, true force "
+        "[N] | contact error median / p95 [mm] | head camera alone: median / p95 [mm] |",
+        "|---" * 13 + "|",
     ]
     for s in summary:
         failures = ", ".join(f"{k} x{v}" for k, v in s["failures"].items()) or "-"
@@ -358,6 +427,9 @@ def summary_table(summary: list[dict[str, Any]]) -> list[str]:
             f"{_f(s['peak_N_median'])} | {s['teleported_successes']}/{s['n']} | "
             f"{_f(s['teleported_peak_N_median'])} | {_f(s['peak_difference_N_median'], 2)} | "
             f"{_f(s.get('object_force_difference_N_median'), 2)} | "
+            f"{_f(s.get('own_peak_difference_N_median'), 2)} / "
+            f"{_f(s.get('own_object_force_difference_N_median'), 2)} | "
+            f"{_f(s.get('demonstration_object_force_difference_N_median'), 2)} | "
             f"{_f(s['contact_error_mm_median'])} / {_f(s['contact_error_mm_p95'])} | "
             f"{_f(s.get('first_contact_error_mm_median'))} / "
             f"{_f(s.get('first_contact_error_mm_p95'))} |"
@@ -382,9 +454,12 @@ def report_lines(section: dict[str, Any]) -> list[str]:
         "manipulation's (F = F_s - F_d); teleported: the same placement started at the grasp "
         "from a demonstration without offset. F depends on what the hand carried when F_d "
         "was read (a teleported hand may already bear part of a lid's weight); the true "
-        "force between hand and object (simulator, scoring only) does not: its paired peak "
-        "difference is the last force column (`python benchmarks/placement.py --end-to-end` "
-        f"runs {section['full_benchmark_per_kind']} per kind and robot).\n",
+        "force between hand and object (simulator, scoring only) does not. The same "
+        "skill's teleported run starts at the grasp with the skill the sequence's "
+        "manipulation used (its own demonstration, corrected by what it recognized): the "
+        "start alone differs. The last force column is how much today's teleported run's true "
+        "peak moves with its other demonstration alone (`python benchmarks/placement.py "
+        f"--end-to-end` runs {section['full_benchmark_per_kind']} per kind and robot).\n",
         *summary_table(section["summary"]),
         "",
     ]
