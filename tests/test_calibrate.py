@@ -306,7 +306,8 @@ class Failing(Recorder):
     [("nan", "bad_reading"), ("spike", "force_limit"), ("stale", "stale_wrench")],
 )
 def test_a_named_stop_restores_the_start_and_holds(how: str, outcome: str) -> None:
-    robot = Failing(FrozenArm(), at=15, how=how)
+    # the fault comes during the pushes, after the readings at rest
+    robot = Failing(FrozenArm(), at=CalibrationConfig().rest_periods + 3, how=how)
     profile = calibrate(robot, "faulty", (0.0, 0.0, 1.0))
     assert profile.outcome == outcome
     assert robot.holds == 1
