@@ -50,7 +50,7 @@ stiffness raised from 5 to 50 and 500 N m/rad: the stiffness the tool point show
 wrist turning under the push; (2) the Jaco's reported tau measured the simulator's own way
 (a setpoint step from rest in free space) for steps of 1-20 mm: the reported value depends on
 the step's size (joint friction at small steps, torque limits at large ones); (3) the force
-noise over 20 seeds on one fixture: how often 12 readings land within 20 % of sigma.
+noise over 40 seeds on one fixture: how often its readings at rest land within 20 % of sigma.
 Results JSON through bench.provenance.write_results.
 """
 

@@ -157,9 +157,8 @@ class CalibrationConfig:
     """How the calibration pushes (module docstring). Units in brackets. Validated at
     construction (ConfigError names the field and its valid range)."""
 
-    rest_periods: int = 16  # readings at rest, one per period, for the force offset and the
-    # noise (>= 3; sigma's relative standard error is about 1 / sqrt(6 (n - 2))); the grasp
-    # settles over them before the first push
+    rest_periods: int = 12  # readings at rest, one per period, for the force offset and the
+    # noise (>= 3; sigma's relative standard error is about 1 / sqrt(6 (n - 2)))
     force_limit: float = 20.0  # [N] |F - F_rest| above this stops the calibration; keep it
     # below the object's limit and the executor's
     contact_force: float = 3.0  # [N] level A: a push has met the object at this |dF|

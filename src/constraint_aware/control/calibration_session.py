@@ -57,7 +57,7 @@ SETTLE_SHARE = 0.05
 #: The readings at rest after the pushes (or the free-space steps) are pooled into the noise
 #: only when their spread is within this factor of the spread before them (either way); a
 #: larger difference is taken for a grasp still moving after the pushes. Two windows of the
-#: same noise (16 and 8 readings) differ by more in about 5 % of calibrations, which then keep
+#: same noise (12 and 8 readings) differ by more in about 6 % of calibrations, which then keep
 #: only the first window: less precision, no bias.
 POOL_RATIO = 1.5
 #: Below this sigma [N] a force reading is implausibly quiet at rest (frozen, or noise-free).
