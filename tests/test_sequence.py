@@ -396,3 +396,33 @@ def test_a_teleported_lid_tares_part_of_its_weight_the_true_force_does_not() -> 
     true_gap = run.object_force_peak_N - run.teleported_object_force_peak_N
     assert tare_gap > 2.0
     assert abs(true_gap) < tare_gap / 2
+
+
+def test_the_end_to_end_summary_pairs_each_sequence_with_its_own_skill_placed() -> None:
+    # the same-skill pairing counts only placements where the sequence and the same skill's
+    # at-grasp run both succeeded; the demonstration's share needs only the two at-grasp runs
+    from constraint_aware.bench.endtoend import SequenceRun, summarize
+
+    def run(i: int, ok: bool, own_ok: bool | None, peak: float, own: float) -> SequenceRun:
+        return SequenceRun(
+            "lid", "hook-hand", i, ok, None if ok else "manipulate",
+            "success" if ok else "not_following", "", peak, peak, 1.0, 1.0, 20.0, 2.0, 1.0, 50,
+            teleported_success=True, teleported_peak_N=3.0, teleported_outcome="success",
+            object_force_peak_N=peak + 1.0, teleported_object_force_peak_N=5.0,
+            own_teleported_success=own_ok, own_teleported_peak_N=own,
+            own_teleported_object_force_peak_N=own + 1.0,
+        )  # fmt: skip
+
+    runs = [
+        run(0, True, True, 5.0, 4.0),  # +1.0 against its own skill placed
+        run(1, True, True, 6.0, 3.0),  # +3.0
+        run(2, False, True, 9.0, 2.0),  # the sequence failed: not paired
+        run(3, True, False, 7.0, 1.0),  # its own skill placed failed: not paired
+        run(4, True, None, 7.0, 1.0),  # not run (nothing recognized)
+    ]
+    row = summarize(runs)[0]
+    assert row["own_paired"] == 2 and row["own_teleported_successes"] == 3
+    assert row["own_peak_difference_N_median"] == pytest.approx(2.0)
+    assert row["own_object_force_difference_N_median"] == pytest.approx(2.0)
+    # today's at-grasp true peak (5.0) against the same skill's (own + 1): runs 0-2
+    assert row["demonstration_object_force_difference_N_median"] == pytest.approx(1.0)
