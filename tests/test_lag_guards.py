@@ -295,3 +295,30 @@ def test_a_wrong_convention_is_caught_with_a_calibrated_deflection_model(sensor:
     rec = executor.run(d0(30.0))
     assert rec.outcome == "sensor_convention", rec.reason
     assert rec.n_steps <= ExecutorConfig().self_check.steps
+
+
+@pytest.mark.parametrize(
+    ("along", "flagged"),
+    [
+        # a crank the Jaco turns: held back on its first moves, pushed along once it runs
+        ((-0.78, -0.56, 0.98, 1.00), False),
+        # every judged move along d: what a flipped sign or a rotated frame reads
+        ((0.30, 0.50, 0.98, 1.00), True),
+    ],
+)
+def test_a_move_held_back_by_the_object_vetoes_the_along_test(
+    along: tuple[float, ...], flagged: bool
+) -> None:
+    """The F.d test alone (no deflection to compare F with). The first sample's median F.d/|F|
+    is 0.21, above the test's 0.1, but a move that read F at least 60 deg against the move
+    cannot come from a flipped sign against a passive object: no verdict."""
+    lag = LagModel(0.16)
+    lag.begin(np.zeros(3), np.zeros(3))
+    check = SensorSelfCheck(8, 1000.0, np.array([0.0, 0.0, 1.0]), lag)
+    d = np.array([1.0, 0.0, 0.0])
+    why = ""
+    for moves, a in enumerate(along, start=1):
+        force = 3.0 * np.array([a, math.sqrt(1.0 - a * a), 0.0])
+        why = why or check.check(moves, force, np.zeros(3), np.zeros(3), d, 0.45, [])
+    assert not check.cosines  # no deflection: the F.d test is all there is
+    assert ("pushes the hand along" in why) is flagged, why

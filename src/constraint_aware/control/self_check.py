@@ -17,7 +17,9 @@ force along it need not be the wrist spring's):
   rotated frame. The wrench is read as the hand decelerates at the end of a period, when the
   hand's and the object's inertia do push along the move, so this test is not applied once
   the arm confirms the convention: cos(F, deflection) agrees both with the reported lag and
-  with a share of it (CONFIRM_LAG_SHARE), which no wrong convention does.
+  with a share of it (CONFIRM_LAG_SHARE), which no wrong convention does; nor once a judged
+  move read F well against the move (AGAINST): the object held the hand back there, which a
+  flipped sign does not read, and the pushes along came at speed.
 
 The reading after a hold and the one after the hand starts again are transients the lag
 model does not describe: they enter the cosine test only (SETTLE_MOVES). Moves with too little
@@ -52,6 +54,9 @@ DEFLECTION_FLOOR = 0.0002
 MIN_SAMPLES = 3
 #: The median F.d/|F| above which the object "pushes the hand along its move".
 MAX_ALONG = 0.1
+#: A settled move whose F.d/|F| is below this read the object holding the hand back, which a
+#: flipped sign cannot read against a passive object: the F.d test then gives no verdict.
+AGAINST = -0.5
 #: The median cos(F, deflection) from which the arm confirms the wrench convention.
 CONFIRM_COS = 0.5
 #: The confirmation must also hold with this share of the reported tracking_time_constant, so
@@ -212,7 +217,7 @@ class SensorSelfCheck:
                 )
         if len(self.along) >= MIN_SAMPLES and not self.arm_confirms():
             a = float(np.median(self.along))
-            if a > MAX_ALONG:
+            if a > MAX_ALONG and min(self.along) >= AGAINST:
                 return (
                     f"wrench sign flipped or frame rotated? the object pushes the hand along "
                     f"its commanded move (median F.d/|F| = {a:.2f} over {len(self.along)} moves)"
