@@ -19,7 +19,7 @@ force along it need not be the wrist spring's):
   the arm confirms the convention: cos(F, deflection) agrees both with the reported lag and
   with a share of it (CONFIRM_LAG_SHARE), which no wrong convention does; nor once a judged
   move read F well against the move (AGAINST): the object held the hand back there, which a
-  flipped sign does not read, and the pushes along came at speed.
+  flipped sign does not read against a passive object.
 
 The reading after a hold and the one after the hand starts again are transients the lag
 model does not describe: they enter the cosine test only (SETTLE_MOVES). Moves with too little
