@@ -426,3 +426,49 @@ def test_the_end_to_end_summary_pairs_each_sequence_with_its_own_skill_placed() 
     assert row["own_object_force_difference_N_median"] == pytest.approx(2.0)
     # today's at-grasp true peak (5.0) against the same skill's (own + 1): runs 0-2
     assert row["demonstration_object_force_difference_N_median"] == pytest.approx(1.0)
+
+
+def _turn(arm: FakeArm) -> tuple[Any, str, str, Any]:
+    """The approach's hand turn toward 10 deg about z on `arm`, whose hand keeps its
+    orientation whatever it is sent (a wrist held by its joints' friction): every try is made."""
+    from constraint_aware.control.approach import advance_period
+    from constraint_aware.lfo.sequence import PhaseRecord, SequenceConfig, _turn_hand
+
+    def tick(phase: PhaseRecord, target: Pose) -> Any:
+        arm.command_pose(target)
+        phase.periods += 1
+        return advance_period(arm)
+
+    phase = PhaseRecord("approach")
+    goal = Rotation.from_euler("z", 10.0, degrees=True)
+    turn, outcome, reason = _turn_hand(arm, phase, goal, SequenceConfig(), 2, tick)
+    return turn, outcome, reason, phase
+
+
+def test_the_hands_turn_stops_on_a_bad_reading_or_contact_with_a_named_reason() -> None:
+    from constraint_aware.lfo.sequence import SequenceConfig
+
+    tries = SequenceConfig().align_tries
+    turn, outcome, _, phase = _turn(FakeArm())
+    assert outcome == "ok"
+    assert phase.details["hand_turn_error_deg"] == [pytest.approx(10.0)] * (tries + 1)
+    assert turn.magnitude() == pytest.approx(np.radians(10.0) * tries)
+    nan = np.full(3, np.nan)
+    at_start = FakeArm()
+    reads = iter([Wrench(nan, np.zeros(3))])  # only the reading the turn measures from
+    read = at_start.read_wrench
+    at_start.read_wrench = lambda: next(reads, None) or read()  # type: ignore[method-assign]
+    cases = [
+        (at_start, "nan"),
+        (FakeArm(_after(2, lambda a: setattr(a, "force", nan))), "nan"),
+        (FakeArm(_after(2, lambda a: setattr(a, "force", np.array([0.0, 8.0, -6.0])))),
+         "force_limit"),
+    ]  # fmt: skip
+    for arm, expected in cases:
+        _, outcome, reason, _ = _turn(arm)
+        assert outcome == expected, reason
+        assert all(np.all(np.isfinite(p.orientation.as_quat())) for p in arm.sent)
+    blind = FakeArm()
+    blind.read_pose = lambda: Pose(np.zeros(3), Rotation.from_rotvec([np.nan, 0.0, 0.0]))  # type: ignore[method-assign]
+    _, outcome, _, _ = _turn(blind)
+    assert outcome == "bad_pose" and not blind.sent

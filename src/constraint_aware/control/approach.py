@@ -144,7 +144,8 @@ def advance_period(robot: Robot, on_period: Callable[[], None] | None = None) ->
     return force if np.all(np.isfinite(force)) else None
 
 
-def _finite_pose(pose: Pose) -> bool:
+def finite_pose(pose: Pose) -> bool:
+    """Whether `pose`'s position and orientation (quaternion) are all finite."""
     return bool(
         np.all(np.isfinite(pose.position)) and np.all(np.isfinite(pose.orientation.as_quat()))
     )
@@ -208,10 +209,10 @@ def _run(
         samples.append(force)
     offset = np.mean(samples, axis=0)
     start = robot.read_pose()
-    if not _finite_pose(start):
+    if not finite_pose(start):
         return _stop(robot, record, "bad_pose", "the pose reading is not finite")
     record.start = [float(v) for v in start.position]
-    if _finite_pose(path[0].pose):
+    if finite_pose(path[0].pose):
         # the hand settled elsewhere than the path begins: lead in along a straight line
         gap = float(np.linalg.norm(path[0].pose.position - hold_pose.position))
         if gap > cfg.max_lead_in:
@@ -234,7 +235,7 @@ def _run(
         waypoint = path[min(i, len(path) - 1)]
         target = waypoint.pose
         if not final:
-            if not _finite_pose(target):
+            if not finite_pose(target):
                 return _stop(robot, record, "bad_command", f"setpoint {i} is not finite (not sent)")
             jump = float(np.linalg.norm(target.position - last))
             if jump > bound:
@@ -255,7 +256,7 @@ def _run(
         magnitude = float(np.linalg.norm(force))
         record.peak_force = max(record.peak_force, magnitude)
         pose = robot.read_pose()
-        if not _finite_pose(pose):
+        if not finite_pose(pose):
             return _stop(robot, record, "bad_pose", f"the pose reading is not finite at period {i}")
         record.end = [float(v) for v in pose.position]
         record.distance_to_goal = float(np.linalg.norm(pose.position - path[-1].pose.position))

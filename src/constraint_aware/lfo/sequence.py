@@ -66,6 +66,7 @@ from constraint_aware.control.approach import (
     MoveRecord,
     Waypoint,
     advance_period,
+    finite_pose,
     guarded_move,
     straight_line,
 )
@@ -334,6 +335,54 @@ def _hand_axis(pose: Pose) -> FloatArray:
     return np.asarray(pose.orientation.apply([0.0, 0.0, 1.0]))
 
 
+def _turn_hand(
+    robot: Any,
+    phase: PhaseRecord,
+    orientation: Rotation,
+    cfg: SequenceConfig,
+    settle: int,
+    tick: Callable[[PhaseRecord, Pose], FloatArray | None],
+) -> tuple[Rotation, str, str]:
+    """Turn the hand to `orientation` where it is: the setpoint turned (at the approach's
+    turn rate) by the hand's remaining error and held `settle` periods, at most
+    `cfg.align_tries` times or until within `cfg.align_tolerance`, the setpoint's earlier
+    turns kept (a hold would drop them and the joints' friction keep the hand). `tick`
+    commands a pose for one period and returns the force after it (None: not finite). The
+    errors before each turn [deg] go to `phase.details["hand_turn_error_deg"]`. Returns the
+    setpoint's turn from `orientation`, and an outcome and reason: "ok", "force_limit" (the
+    force changed by more than the approach's contact limit), "nan" (a wrench reading that is
+    not finite) or "bad_pose" (a measured orientation that is not finite)."""
+    turn = Rotation.identity()
+    errors: list[float] = []
+    phase.details["hand_turn_error_deg"] = errors
+    base = np.asarray(robot.read_wrench().force, dtype=float)
+    if not np.all(np.isfinite(base)):
+        return turn, "nan", "the wrench reading is not finite"
+    for attempt in range(cfg.align_tries + 1):
+        hand = robot.read_pose()
+        if not finite_pose(hand):
+            return turn, "bad_pose", "the measured hand pose is not finite"
+        error = orientation * hand.orientation.inv()
+        errors.append(math.degrees(error.magnitude()))
+        if errors[-1] <= cfg.align_tolerance or attempt == cfg.align_tries:
+            break
+        turn = error * turn
+        here = robot.commanded_pose()
+        target = Pose(here.position, turn * orientation)
+        path = straight_line(here, target, cfg.approach, robot.control_period)
+        for waypoint in path + [Waypoint(target)] * settle:
+            force = tick(phase, waypoint.pose)
+            if force is None:
+                return turn, "nan", "the wrench reading is not finite"
+            change = float(np.linalg.norm(force - base))
+            phase.peak_force = max(phase.peak_force, change)
+            if change > cfg.approach.contact_limit:
+                limit = cfg.approach.contact_limit
+                why = f"unexpected contact while turning the hand: |F - F_0| {change:.1f} N"
+                return turn, "force_limit", f"{why} above {limit:g} N"
+    return turn, "ok", ""
+
+
 def _from_move(phase: PhaseRecord, move: MoveRecord) -> None:
     phase.periods += move.periods
     phase.peak_force = max(phase.peak_force, move.peak_force)
@@ -435,37 +484,6 @@ def _run_phases(
         phase.periods += 1
         return advance_period(robot, on_period)
 
-    def align(phase: PhaseRecord, orientation: Rotation) -> tuple[Rotation, str, str]:
-        """Turn the hand to `orientation` where it is: the setpoint turned (at the approach's
-        turn rate) by the hand's remaining error and held `settle_time`, the setpoint's
-        earlier turns kept (a hold would drop them and the joints' friction keep the hand);
-        returns the setpoint's turn from `orientation`, and an outcome and reason: "ok", or a
-        force above the approach's contact limit or a reading that is not finite."""
-        turn = Rotation.identity()
-        base = np.asarray(robot.read_wrench().force, dtype=float)
-        errors: list[float] = []
-        phase.details["hand_turn_error_deg"] = errors
-        for attempt in range(cfg.align_tries + 1):
-            error = orientation * robot.read_pose().orientation.inv()
-            errors.append(math.degrees(error.magnitude()))
-            if errors[-1] <= cfg.align_tolerance or attempt == cfg.align_tries:
-                break
-            turn = error * turn
-            here = robot.commanded_pose()
-            target = Pose(here.position, turn * orientation)
-            path = straight_line(here, target, cfg.approach, robot.control_period)
-            for waypoint in path + [Waypoint(target)] * settle:
-                force = tick(phase, waypoint.pose)
-                if force is None:
-                    return turn, "nan", "the wrench reading is not finite"
-                change = float(np.linalg.norm(force - base))
-                phase.peak_force = max(phase.peak_force, change)
-                if change > cfg.approach.contact_limit:
-                    limit = cfg.approach.contact_limit
-                    why = f"unexpected contact while turning the hand: |F - F_0| {change:.1f} N"
-                    return turn, "force_limit", f"{why} above {limit:g} N"
-        return turn, "ok", ""
-
     def found(perception: Perception, grasp: Pose) -> dict[str, Any]:
         return {
             "method": perception.recognition.method,
@@ -535,7 +553,7 @@ def _run_phases(
                                   robot.control_period), cfg.approach)  # fmt: skip
     if not m.ok:
         return _fail(robot, record, phase, m.outcome, m.reason)
-    turn, outcome, reason = align(phase, orientation)
+    turn, outcome, reason = _turn_hand(robot, phase, orientation, cfg, settle, tick)
     if outcome != "ok":
         return _fail(robot, record, phase, outcome, reason)
     goal = grasp.moved(cfg.overshoot * approach) if passive else grasp
