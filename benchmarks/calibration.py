@@ -127,8 +127,7 @@ def grasp_gap(task: Any) -> float | None:
     """[m] the gap the hook hand's fingers leave beside a bar: None for other handles."""
     if task.object.handle != "bar":
         return None
-    hand = task.hand
-    return float(hand.finger_offset - hand.finger_thickness - task.object.handle_radius)
+    return float(task.hand.bar_gap(task.object.handle_radius))
 
 
 def calibrate_one(

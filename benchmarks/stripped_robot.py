@@ -22,10 +22,17 @@ user's order: free space once, then each grasp).
 Section "stripped" (on the randomized suite of bench/sweep.py, controller `policy`, the same
 draws for each condition):
 - "full reports": the simulated robot as it is (translational_stiffness,
-  tracking_time_constant, grasp_contact, hold), no profile;
+  tracking_time_constant, grasp_contact, hold), no profile, and on the hook hand's bar grasps
+  (drawer, door) the grasp play its geometry defines (`HandConfig.bar_gap`, 1.5 mm) as
+  ExecutorConfig.robot.grasp_play: the Robot protocol has no member for the play, so a
+  robot that knows everything says it in its configuration (the Jaco's fingers close on the
+  bar: no play the simulator defines);
 - "stripped + profile": only the required members (read_wrench, read_pose, commanded_pose,
   command_pose, advance, control_period), with the profile;
-- "stripped, no profile": only the required members, no profile (what the profile buys).
+- "stripped, no profile": only the required members, no profile (what the profile buys);
+- "stripped + profile, reported k and tau" (a diagnostic, outside the must-show): the
+  profile with its stiffness and tracking time constant replaced by the robot's reports,
+  which shows what is left of a difference once both conditions use the same k and tau.
 Per robot, task and condition: successes / runs, the median peak |F| and the median mean |F|
 [N], the outcomes, and the sources of the run inputs. Must-show: "stripped + profile" has the
 same successes as "full reports" and median peak and mean |F| within noise (5 % or 0.2 N).
@@ -72,7 +79,12 @@ from constraint_aware.spatial import Pose, Wrench
 
 DEFAULT_OUT = Path(__file__).parent / "results" / "stripped_robot.json"
 ROBOTS = ("hook-hand", "jaco")
-CONDITIONS = ("full reports", "stripped + profile", "stripped, no profile")
+CONDITIONS = (
+    "full reports",
+    "stripped + profile",
+    "stripped, no profile",
+    "stripped + profile, reported k and tau",
+)
 FAULTS = ("noise_at_tare", "noise_at_last", "jitter", "frozen")
 ONSET = 5  # moves before the sensor fails
 SENSOR_NOISE = 0.1  # [N] the suite's
@@ -209,6 +221,26 @@ def profiles(
     return out
 
 
+def known_play(robot: str, task: str) -> float | None:
+    """[m] the grasp play the simulated robot's geometry defines: the hook hand's gap beside
+    a bar; None elsewhere."""
+    cfg = task_config(task)
+    if robot != "hook-hand" or cfg.object.handle != "bar":
+        return None
+    return cfg.hand.bar_gap(cfg.object.handle_radius)
+
+
+def with_reports(profile: RobotProfile, sim: Any) -> RobotProfile:
+    """`profile` with its stiffness and tracking time constant replaced by `sim`'s reports."""
+    quantities = dict(profile.quantities)
+    for name, reported in (
+        ("stiffness", sim.translational_stiffness),
+        ("tracking_time_constant", sim.tracking_time_constant),
+    ):
+        quantities[name] = dataclasses.replace(quantities[name], value=float(reported))
+    return dataclasses.replace(profile, quantities=quantities)
+
+
 def _within_noise(a: float, b: float) -> bool:
     return abs(a - b) <= max(TOLERANCE[0] * max(abs(a), abs(b)), TOLERANCE[1])
 
@@ -219,14 +251,30 @@ def stripped(
     policy = ConstraintAwarePolicy.load("default")
     rows: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for robot in robots:
+        reported = {
+            task: with_reports(profs[(robot, task)], grasped(RunSpec(task=task, robot=robot))[1])
+            for task in TASKS
+        }
         for spec in suite_specs(seeds, ["policy"]):
             spec = dataclasses.replace(spec, robot=robot)
             for condition in CONDITIONS:
                 wrap: Callable[[Any], Robot] | None = None
-                if condition != "full reports":
+                given: RobotProfile | None = None
+                one = spec
+                if condition == "full reports":
+                    play = known_play(robot, spec.task)
+                    if play is not None:
+                        one = dataclasses.replace(
+                            spec,
+                            overrides=(*spec.overrides, ("executor__robot__grasp_play", play)),
+                        )
+                else:
                     wrap = RequiredOnly
-                given = profs[(robot, spec.task)] if condition == "stripped + profile" else None
-                record, _ = run(spec, policy=policy, wrap=wrap, profile=given)
+                if condition == "stripped + profile":
+                    given = profs[(robot, spec.task)]
+                elif condition == "stripped + profile, reported k and tau":
+                    given = reported[spec.task]
+                record, _ = run(one, policy=policy, wrap=wrap, profile=given)
                 summary = record.summary()
                 summary["sources"] = {k: v["source"] for k, v in record.inputs.items()}
                 rows.setdefault((robot, spec.task, condition), []).append(summary)

@@ -89,6 +89,11 @@ class HandConfig:
         """[kg] mass carried by the translational joints (hand, fingers, wrist bodies)."""
         return self.hand_mass + 0.1 + 3 * 0.01
 
+    def bar_gap(self, handle_radius: float) -> float:
+        """[m] the gap each finger leaves beside a bar of `handle_radius` [m] held between
+        them: the grasp's play, the hand's free travel across the bar before it meets it."""
+        return self.finger_offset - self.finger_thickness - handle_radius
+
     def arm_damping(self, inertia: float, stiffness: float) -> float:
         return 2.0 * self.damping_ratio * (stiffness * inertia) ** 0.5
 
