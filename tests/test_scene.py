@@ -98,3 +98,29 @@ def test_the_jaco_grasp_stays_out_of_the_visual_parts(name: str) -> None:
     sim = JacoSim(task_config(name))
     sim.reset()
     assert intrusions(sim.model, sim.data, "jaco") == []
+
+
+def test_a_cranks_shaft_ends_at_its_hub_a_doors_post_spans_its_edge() -> None:
+    # the crank is turned from above its knob: its shaft stands below the hub, where no hand
+    # reaching for the knob meets it; a door's post runs along its hinged edge on both sides
+    # of the handle's height
+    from constraint_aware.sim.objects import KNOB_STEM, object_frame
+
+    def post_ends(task: TaskConfig) -> tuple[np.ndarray, np.ndarray]:
+        model = build_model(task)
+        data = mujoco.MjData(model)
+        mujoco.mj_kinematics(model, data)
+        geom = model.geom(OBJECT_PREFIX + "scene_hinge").id
+        axis = data.geom_xmat[geom].reshape(3, 3)[:, 2] * model.geom_size[geom][1]
+        return data.geom_xpos[geom] - axis, data.geom_xpos[geom] + axis
+
+    crank = task_config("handle-rotating")
+    up = object_frame(crank.object)[:, 2]
+    hub = float(crank.object.handle_position @ up) - (2 * crank.object.handle_half[2] + KNOB_STEM)
+    tops = sorted(float(end @ up) for end in post_ends(crank))
+    assert tops[1] == pytest.approx(hub, abs=1e-4)
+    door = task_config("door-opening")
+    up = object_frame(door.object)[:, 2]
+    handle = float(door.object.handle_position @ up)
+    spans = sorted(float(end @ up) - handle for end in post_ends(door))
+    assert spans == pytest.approx([-0.3, 0.3], abs=1e-4)

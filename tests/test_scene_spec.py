@@ -14,7 +14,10 @@ Rollouts are compared to 1e-4 N and 1e-6 m per step, except `UNSTABLE` cases. Th
 the templates' on main at commit b856b3f; since the control period lasts exactly its 100 ms
 (sim/robot_adapter.py, it ran 110 ms) and the hook hand reports its tracking_time_constant to
 the executor's lag model, the rollouts are re-recorded from the native builders (the models
-stay the templates'), so for rollouts this is a regression snapshot.
+stay the templates'), so for rollouts this is a regression snapshot. A crank's shaft (the
+visual post of a knob or pole on a hinge) ends at its hub instead of standing 0.3 m over the
+handle's height: the three crank cases' models are re-recorded for that one geom (its
+position, size and bounds), the rest of every model and every rollout as before.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ def test_inverse_kinematics_keeps_the_asked_joint_limit_margin() -> None:
     from constraint_aware.sim.reach import JacoPlanner, PlanningError, _grasp, choose_base
 
     place, _ = _placed("drawer", 0)
-    base, _ = choose_base(place.task)
+    base, _, _ = choose_base(place.task)
     planner = JacoPlanner(base)
     planner.set_object(place.task)
     grasp = _grasp(place.task)
@@ -88,83 +88,114 @@ def test_the_base_moves_when_the_perceived_grasp_is_out_of_reach() -> None:
     from constraint_aware.sim.reach import choose_base, reaches_from
 
     place, skill = _placed("window", 7)
-    demonstrated, _ = choose_base(scene_from_skill(skill).task)
+    demonstrated, _, _ = choose_base(scene_from_skill(skill).task)
     assert not reaches_from(place.task, demonstrated)
-    perceived, _ = choose_base(place.task)  # reaches_from holds there
+    perceived, _, _ = choose_base(place.task)  # reaches_from holds there
     assert float(np.linalg.norm(perceived - demonstrated)) > 0.01
 
 
-def test_the_station_models_the_hand_pre_shaped_as_it_reaches() -> None:
-    # a crank's knob 12 cm from its hinge post: at the pre-grasp above the knob the hand
-    # pre-shaped for it keeps the planner's clearance from the post, the open hand does not;
-    # a station checked with the open hand refused a crank the reach then clears
+def test_the_station_models_the_hand_pre_shaped_as_it_reaches(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # the station checks its clearances with the hand as it reaches, pre-shaped for the
+    # handle (a knob: 0.6 rad), not open: at this crank's pre-grasp the open fingers stand
+    # over 2 cm farther from the object than the pre-shaped ones
     from constraint_aware.lfo.scene import scene_from_skill
+    from constraint_aware.sim import reach
     from constraint_aware.sim.jaco import arm_base
-    from constraint_aware.sim.reach import (
-        BASE_PLACEMENT,
-        JACO_PRESHAPE,
-        JacoPlanner,
-        _grasp,
-        choose_base,
-        facing,
-    )
 
     _, skill = _placed("crank", 1)
     believed = scene_from_skill(skill).task
-    base = arm_base(believed, BASE_PLACEMENT[("revolute", "knob")])
-    grasp = _grasp(believed)
+    base = arm_base(believed, reach.BASE_PLACEMENT[("revolute", "knob")])
+    grasp = reach._grasp(believed)
     pre = grasp.moved(-0.10 * grasp.orientation.apply([0.0, 0.0, 1.0]))
-    planner = JacoPlanner(base)
+    planner = reach.JacoPlanner(base)
     planner.set_object(believed)
-    q = planner.solve_ik(pre, facing(base, pre.position), clearance=-1.0)
-    planner.fingers = JACO_PRESHAPE["knob"]
+    q = planner.solve_ik(pre, reach.facing(base, pre.position), clearance=-1.0)
+    planner.fingers = reach.JACO_PRESHAPE["knob"]
     shaped = planner.clearance(q)
-    planner.fingers = JACO_PRESHAPE["bar"]  # open
-    assert planner.clearance(q) < planner.config.clearance <= shaped
-    choose_base(believed)  # some placement reaches it
+    planner.fingers = reach.JACO_PRESHAPE["bar"]  # open
+    assert planner.clearance(q) > shaped + 0.02
+
+    shapes: list[float] = []
+
+    class Watched(reach.JacoPlanner):
+        def clearance(self, q: Any, handle: bool = True) -> float:
+            shapes.append(self.fingers)
+            return super().clearance(q, handle)
+
+    monkeypatch.setattr(reach, "JacoPlanner", Watched)
+    assert reach.reaches_from(believed, base)
+    assert shapes and set(shapes) == {reach.JACO_PRESHAPE["knob"]}
+
+
+def test_a_knob_near_its_hub_is_held_across_its_mount() -> None:
+    # this crank's knob is 79 mm from its hinge: with the hand at the knob's mount the finger
+    # curled toward the hub meets it at the grasp from every base placement; held turned a
+    # quarter about the approach, the fingers off that line, the arm reaches the whole motion
+    import math
+
+    from constraint_aware.lfo.scene import scene_from_skill
+    from constraint_aware.sim.reach import choose_base, reaches_from
+
+    _, skill = _placed("crank", 2)
+    believed = scene_from_skill(skill).task
+    base, _, roll = choose_base(believed)
+    assert roll == pytest.approx(0.5 * math.pi)
+    assert not reaches_from(believed, base)
+    assert reaches_from(believed, base, roll=roll)
 
 
 def test_the_arm_at_home_leaves_the_head_camera_its_view() -> None:
-    # the first placement from which the arm reaches this crank puts its home posture between
-    # the head camera and the knob (the recognizer then refuses a crop it barely sees); the
-    # station is one from which the camera sees the crop's central half
-    from scipy.spatial.transform import Rotation
+    # what the head camera must see from home (here: points just beyond the arm's largest
+    # link, as the camera sees it at the first station's home) decides the station: the robot
+    # stands where its arm at home hides none of them
+    import mujoco
 
-    from constraint_aware.lfo.perception import nominal_frame
+    from constraint_aware.lfo.perception import head_camera
     from constraint_aware.lfo.scene import scene_from_skill
-    from constraint_aware.lfo.sequence import SequenceConfig, home_view, station_for
+    from constraint_aware.lfo.sequence import SequenceConfig
     from constraint_aware.sim.reach import (
         JACO_PRESHAPE,
         JacoPlanner,
+        View,
+        _grasp,
         choose_base,
         facing,
         home_pose,
+        reaches_from,
+        rolled,
     )
-    from constraint_aware.spatial import Pose
 
     _, skill = _placed("crank", 1)
     believed = scene_from_skill(skill).task
     cfg = SequenceConfig()
     home = (cfg.jaco_home_forward, cfg.jaco_home_up)
-    station = station_for("jaco", skill, cfg)
-    assert station.base is not None and station.home_joints is not None
-    _, frame = nominal_frame(skill)
-    view = home_view(station.camera, frame)
-    blind, _ = choose_base(believed, cfg.pre_grasp, home)  # no view asked
-    assert float(np.linalg.norm(station.base - blind)) > 0.1
+    eye = np.asarray(head_camera("jaco", skill).pose.position, dtype=float)
+    blind, _, roll = choose_base(believed, cfg.pre_grasp, home)  # no view asked
 
-    def hidden(base: np.ndarray, q: np.ndarray | None = None) -> int:
+    def at_home(base: np.ndarray) -> tuple[JacoPlanner, np.ndarray]:
         planner = JacoPlanner(base)
         planner.fingers = JACO_PRESHAPE["knob"]
         planner.set_object(believed)
-        if q is None:
-            grasp = Pose(frame.origin, Rotation.from_matrix(frame.rotation))
-            tool = home_pose(base, grasp, home)
-            q = planner.solve_ik(tool, facing(base, tool.position))
-        return planner.hidden(q, view.eye, view.points)
+        tool = home_pose(base, rolled(_grasp(believed), roll), home)
+        return planner, planner.solve_ik(tool, facing(base, tool.position))
 
-    assert hidden(station.base, station.home_joints) == 0
-    assert hidden(blind) > len(view.points) // 2
+    planner, q = at_home(blind)
+    m, d = planner.model, planner._scratch
+    d.qpos[:] = planner._full(q)
+    mujoco.mj_kinematics(m, d)
+    link = max(planner._robot_geoms, key=lambda g: float(m.geom_rbound[g]))
+    centre = d.geom_xpos[link].copy()
+    sight = (centre - eye) / np.linalg.norm(centre - eye)
+    points = centre + 0.3 * sight + 0.003 * np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    view = View(eye, points)
+    assert planner.hidden(q, eye, points) == len(points)
+    assert not reaches_from(believed, blind, cfg.pre_grasp, home, view=view, roll=roll)
+    seen, _, roll = choose_base(believed, cfg.pre_grasp, home, view)
+    assert float(np.linalg.norm(seen - blind)) > 0.1
+    planner, q = at_home(seen)
+    assert planner.hidden(q, eye, points) == 0
 
 
 def test_the_end_to_end_benchmark_names_an_unknown_kind() -> None:

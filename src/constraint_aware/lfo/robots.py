@@ -47,6 +47,9 @@ class SequenceRobot(ABC):
     """An embodiment behind the Robot protocol plus its hand and home (module docstring)."""
 
     name = "robot"
+    #: [rad] the hand's turn about its approach from the handle's mount at the grasp: how
+    #: this robot holds the handle from where it stands (lfo.sequence.Station.grasp_roll)
+    grasp_roll = 0.0
 
     def __init__(self, sim: Embodiment) -> None:
         self._sim = sim
@@ -215,11 +218,14 @@ class JacoRobot(SequenceRobot):
 
     name = "jaco"
 
-    def __init__(self, sim: JacoSim, home: FloatArray, planner: JacoPlanner) -> None:
+    def __init__(
+        self, sim: JacoSim, home: FloatArray, planner: JacoPlanner, grasp_roll: float = 0.0
+    ) -> None:
         super().__init__(sim)
         self._jaco = sim
         self._home = np.asarray(home, dtype=float)
         self.planner = planner
+        self.grasp_roll = float(grasp_roll)
 
     def preshape(self, shape: str) -> None:
         self._jaco.set_fingers(JACO_PRESHAPE[_check_shape(shape)])

@@ -246,14 +246,16 @@ def _strict(value: Any) -> Any:
 @dataclass(frozen=True)
 class Station:
     """Where the robot works from, derived from the demonstration only: its head camera, for
-    the Jaco its base (3,) [m] and home joint angles (6,) [rad], for the hook hand its home
-    tool pose."""
+    the Jaco its base (3,) [m], home joint angles (6,) [rad] and the hand's turn about its
+    approach from the handle's mount at which the arm reaches the grasp (`grasp_roll` [rad],
+    sim.reach.grasp_rolls), for the hook hand its home tool pose."""
 
     robot: str
     camera: CameraMount
     home_pose: Pose | None = None
     base: FloatArray | None = None
     home_joints: FloatArray | None = None
+    grasp_roll: float = 0.0
 
 
 def _toward_hand(skill: SkillParameters, approach: FloatArray, samples: int = 16) -> float:
@@ -303,25 +305,28 @@ def station_for(
         choose_base,
         facing,
         home_pose,
+        rolled,
     )
 
     believed = scene_from_skill(skill).task
     offsets = (cfg.jaco_home_forward, cfg.jaco_home_up)
-    base, _ = choose_base(believed, cfg.pre_grasp, offsets, home_view(camera, frame))
-    tool = home_pose(base, Pose(frame.origin, orientation), offsets)
+    base, _, roll = choose_base(believed, cfg.pre_grasp, offsets, home_view(camera, frame))
+    tool = home_pose(base, rolled(Pose(frame.origin, orientation), roll), offsets)
     planner = JacoPlanner(base)
     planner.fingers = JACO_PRESHAPE[believed.object.handle]  # as at home: pre-shaped
     planner.set_object(believed)
     q = planner.solve_ik(tool, facing(base, tool.position))
-    return Station(spec.name, camera, base=base, home_joints=q)
+    return Station(spec.name, camera, base=base, home_joints=q, grasp_roll=roll)
 
 
 # --- the pipeline: demonstration, camera and robot only -------------------------------------
-def grasp_orientation(believed: TaskConfig, approach: FloatArray) -> Rotation:
+def grasp_orientation(believed: TaskConfig, approach: FloatArray, roll: float = 0.0) -> Rotation:
     """The hand's orientation at the grasp: the hand mount of the `believed` object (built
-    from the corrected skill), turned by the least rotation that takes its approach onto the
-    recognized `approach` (3,)."""
-    mount = Rotation.from_matrix(np.asarray(believed.hand_mount()))
+    from the corrected skill) turned by `roll` [rad] about its approach, then by the least
+    rotation that takes its approach onto the recognized `approach` (3,)."""
+    mount = Rotation.from_matrix(np.asarray(believed.hand_mount())) * Rotation.from_rotvec(
+        [0.0, 0.0, roll]
+    )
     z = mount.apply([0.0, 0.0, 1.0])
     a = unit(np.asarray(approach, dtype=float))
     axis = np.cross(z, a)
@@ -469,7 +474,7 @@ def _run_phases(
         fixed = corrected_skill(skill, found.recognition)
         believed = scene_from_skill(fixed).task
         approach = np.asarray(found.recognition.approach, dtype=float)
-        orientation = grasp_orientation(believed, approach)
+        orientation = grasp_orientation(believed, approach, robot.grasp_roll)
         grasp = robot.grasp_pose_at(found.recognition.contact_point, orientation, shape)
         robot.believe(believed, 0.0)
         pre = grasp.moved(-cfg.pre_grasp * approach)
@@ -787,7 +792,9 @@ def build_world(
         task, osc, spec.period or CONTROL_PERIOD, base=station.base, model=world.compile()
     )
     jaco.set_sensor_noise(sensor_rng, sensor_noise)
-    return jaco, JacoRobot(jaco, station.home_joints, JacoPlanner(station.base))
+    return jaco, JacoRobot(
+        jaco, station.home_joints, JacoPlanner(station.base), grasp_roll=station.grasp_roll
+    )
 
 
 def run_in_simulation(
@@ -847,7 +854,10 @@ def run_in_simulation(
         offsets = (cfg.jaco_home_forward, cfg.jaco_home_up)
         try:
             fixed = corrected_skill(skill, perceive(skill, image, recognizer).recognition)
-            if not reaches_from(scene_from_skill(fixed).task, station.base, cfg.pre_grasp, offsets):
+            perceived = scene_from_skill(fixed).task
+            if not reaches_from(
+                perceived, station.base, cfg.pre_grasp, offsets, roll=station.grasp_roll
+            ):
                 moved = dataclasses.replace(station_for(robot, fixed, cfg), camera=station.camera)
                 assert moved.base is not None
                 notes.append(
@@ -859,6 +869,12 @@ def run_in_simulation(
                 sim, adapter = world(station)
         except (RecognitionError, CapError) as exc:  # the sequence's phases report it
             notes.append(f"the base stays where the demonstration puts it: {exc}")
+    if station.grasp_roll:
+        notes.append(
+            f"the hand holds the handle turned {math.degrees(station.grasp_roll):.0f} deg about "
+            "its approach from the handle's mount: from no base placement does the arm reach "
+            "the mount's grasp clear of the object"
+        )
     seen: list[DepthImage] = []
 
     def capture() -> DepthImage:

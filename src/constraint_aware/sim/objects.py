@@ -550,14 +550,20 @@ def _rail(world: MjsBody, cfg: ObjectConfig, frame: np.ndarray) -> None:
 
 
 def _hinge_post(world: MjsBody, cfg: ObjectConfig, frame: np.ndarray) -> None:
-    """Revolute: a post along the hinge axis."""
+    """Revolute: a post along the hinge axis, from 0.3 m below the handle's height: a door's or
+    a lid's along the hinged edge to 0.3 m above it; a crank's (a knob or a pole on a hinge)
+    shaft up to its hub only (the crank is turned from above its handle, where a shaft would
+    stand in the hand's way)."""
     import mujoco
 
     p, up = np.asarray(cfg.position, dtype=float), frame[:, 2]
     geom = _scenery_geom(world, "scene_hinge")
     geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
     geom.size = [0.012, 0.0, 0.0]
-    geom.fromto = on_grid([*(p - 0.3 * up), *(p + 0.3 * up)])
+    top = p + 0.3 * up
+    if cfg.handle in ("knob", "pole"):
+        top = p - (2 * cfg.handle_half[2] + KNOB_STEM) * up  # the hub, as `_crank_arm` has it
+    geom.fromto = on_grid([*(p - 0.3 * up), *top])
 
 
 SCENERY_BUILDERS: dict[str, Callable[[MjsBody, ObjectConfig, np.ndarray], None]] = {

@@ -546,6 +546,24 @@ BASE_CANDIDATES: tuple[tuple[float, float, float], ...] = tuple(
 )
 
 
+#: Turns [rad] of the Jaco's hand about its approach tried in order at a knob, which its grasp
+#: (palm on top, the fingers closing on the sides) holds alike from any side: the kind's own
+#: hand mount first, then across it (the fingers off the line from the knob to the hub), then
+#: reversed. Near its hub a knob leaves no room for the finger the mount curls toward the hub
+#: (it meets the crank's arm or hub). Every other handle is held one way: its own mount.
+KNOB_ROLLS = (0.0, 0.5 * math.pi, -0.5 * math.pi, math.pi)
+
+
+def grasp_rolls(handle: str) -> tuple[float, ...]:
+    """The turns [rad] about the approach a grasp of `handle` may take (`KNOB_ROLLS`)."""
+    return KNOB_ROLLS if handle == "knob" else (0.0,)
+
+
+def rolled(pose: Pose, roll: float) -> Pose:
+    """`pose` turned by `roll` [rad] about its own approach (the tool's z axis)."""
+    return Pose(pose.position, pose.orientation * Rotation.from_rotvec([0.0, 0.0, roll]))
+
+
 def motion_poses(task: TaskConfig, grasp: Pose, fractions: tuple[float, ...]) -> list[Pose]:
     """The tool poses that move with the handle from `grasp` at joint position 0 to the
     given fractions of `task`'s success progress (a hinge turns the hand with it)."""
@@ -578,21 +596,26 @@ def choose_base(
     pre_grasp: float = 0.10,
     home: tuple[float, float] | None = None,
     view: View | None = None,
-) -> tuple[FloatArray, tuple[float, float, float]]:
-    """Where the Jaco stands for `task` (the object as the robot believes it): the kind's
-    placement (sim.jaco.BASE_PLACEMENT) if from it the arm reaches what `reaches_from`
-    asks, else the first of `BASE_CANDIDATES` that does. CapError when none does. Returns the
-    base (3,) [m] and the placement."""
+) -> tuple[FloatArray, tuple[float, float, float], float]:
+    """Where the Jaco stands for `task` (the object as the robot believes it), and how its
+    hand turns about the approach: the kind's placement (sim.jaco.BASE_PLACEMENT) if from it
+    the arm reaches what `reaches_from` asks, else the first of `BASE_CANDIDATES` that does,
+    with the hand at the kind's mount; else the same with the next of the handle's
+    `grasp_rolls`. CapError when none does. Returns the base (3,) [m], the placement and the
+    roll [rad]."""
     kind = (task.object.joint_type, task.object.handle)
     first = [BASE_PLACEMENT[kind]] if kind in BASE_PLACEMENT else []
     grasp = _grasp(task)
-    for placement in [*first, *BASE_CANDIDATES]:
-        base = arm_base(task, placement)
-        if reaches_from(task, base, pre_grasp, home, grasp, view):
-            return base, placement
+    rolls = grasp_rolls(task.object.handle)
+    for roll in rolls:
+        for placement in [*first, *BASE_CANDIDATES]:
+            base = arm_base(task, placement)
+            if reaches_from(task, base, pre_grasp, home, grasp, view, roll):
+                return base, placement, roll
+    turns = f" with the hand turned {len(rolls)} ways" if len(rolls) > 1 else ""
     raise CapError(
         f"the Jaco reaches the demonstrated motion of the {task.name} from none of "
-        f"{len(BASE_CANDIDATES) + len(first)} base placements"
+        f"{len(BASE_CANDIDATES) + len(first)} base placements{turns}"
     )
 
 
@@ -611,6 +634,7 @@ def reaches_from(
     home: tuple[float, float] | None = None,
     grasp: Pose | None = None,
     view: View | None = None,
+    roll: float = 0.0,
 ) -> bool:
     """Whether the Jaco standing at `base` (3,) [m] reaches `task`'s object as the robot
     believes it: clear of the object (as `JacoPlanner` checks), the pre-grasp `pre_grasp` [m]
@@ -619,13 +643,14 @@ def reaches_from(
     `home` (forward, up) [m] from the base toward the handle, a home tool pose clear of the
     object closed and at the motion's end, from which, given `view`, the arm hides none of
     the view's points from the camera (the robot looks from home). `grasp`: the tool pose at
-    the grasp, if known.
+    the grasp at the kind's hand mount, if known; `roll` [rad]: the hand's turn about its
+    approach from that mount (`grasp_rolls`).
 
     The hand is modelled as it reaches: pre-shaped for the object's handle
     (`JACO_PRESHAPE`). The pre-grasp and the motion must be reached `OscConfig.limit_margin`
     inside the joint limits: there the controller's joint-limit repulsion starts, and a
     posture inside it is one the arm does not hold (it stops short of the grasp)."""
-    grasp = grasp or _grasp(task)
+    grasp = rolled(grasp or _grasp(task), roll)
     approach = grasp.orientation.apply([0.0, 0.0, 1.0])
     pre = grasp.moved(-pre_grasp * approach)
     fractions = (0.0, 0.5, 1.0)
