@@ -546,11 +546,12 @@ BASE_CANDIDATES: tuple[tuple[float, float, float], ...] = tuple(
 )
 
 
-#: Turns [rad] of the Jaco's hand about its approach tried in order at a knob, which its grasp
-#: (palm on top, the fingers closing on the sides) holds alike from any side: the kind's own
-#: hand mount first, then across it (the fingers off the line from the knob to the hub), then
-#: reversed. Near its hub a knob leaves no room for the finger the mount curls toward the hub
-#: (it meets the crank's arm or hub). Every other handle is held one way: its own mount.
+#: Turns [rad] of the Jaco's hand about its approach tried in order at a knob (its grasp: the
+#: palm on top, the fingers closing on two opposite sides of the knob's box): the kind's own
+#: hand mount first, then across it (the fingers off the line from the knob to the hub, on
+#: the box's other two sides), then reversed (the same sides). Near its hub a knob leaves no
+#: room for the finger the mount curls toward the hub (it meets the crank's arm or hub).
+#: Every other handle is held one way: its own mount.
 KNOB_ROLLS = (0.0, 0.5 * math.pi, -0.5 * math.pi, math.pi)
 
 
