@@ -20,9 +20,9 @@ reason; the first that fails ends the sequence with the robot told to hold, the 
 4. approach: in along the approach to `contact_zone` before the grasp; there the hand is
    turned to the grasp's orientation (a compliant wrist with dry friction in its joints
    arrives some degrees off, and keeps what it is not turned out of); then on to the
-   grasp at the slower `contact` speed. A force above the contact limit stops it: near the
-   grasp as contact, earlier as a failure. Passive closures (plate, knob) aim `overshoot`
-   past the perceived surface and stop at contact.
+   grasp. A force above the contact limit stops it: near the grasp as contact, earlier as a
+   failure. Passive closures (plate, knob) aim `overshoot` past the perceived surface and
+   stop at contact.
 5. grasp: the hand closes by the force-exertion type; a passive closure presses
    `press_depth` on; the wrist then rests where it settled (no preload) and the hand must
    report contact, unless it holds the handle with play (`grasp_touches`: the hook hand's
@@ -147,11 +147,6 @@ class SequenceConfig:
     )
     take_up_travel: float = 0.005  # [m]
     approach: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.03))
-    # the approach's last part, from `contact_zone` before the grasp on: slow, as the hand
-    # may meet the handle there and the arm trails its setpoint by tau x speed, which a
-    # stiff surface turns into force within the period before the contact is read (the
-    # Jaco, tau about 0.16 s, at 30 mm/s: 8 mm behind, 19 N in one period on a knob)
-    contact: MoveConfig = field(default_factory=lambda: MoveConfig(speed=0.01))
     leave: MoveConfig = field(
         default_factory=lambda: MoveConfig(speed=0.05, contact_limit=6.0, position_tolerance=0.02)
     )
@@ -568,11 +563,11 @@ def _run_phases(
         return _fail(robot, record, phase, outcome, reason)
     goal = grasp.moved(cfg.overshoot * approach) if passive else grasp
     goal = Pose(goal.position, turn * goal.orientation)
-    path = straight_line(robot.commanded_pose(), goal, cfg.contact, robot.control_period)
+    path = straight_line(robot.commanded_pose(), goal, cfg.approach, robot.control_period)
     zone = cfg.contact_zone + (cfg.overshoot if passive else 0.0)
     along = [float((w.pose.position - grasp.position) @ approach) for w in path]
     contact_from = next((i for i, s in enumerate(along) if s > -zone), len(path) - 1)
-    m = move(phase, path, cfg.contact, contact_from)
+    m = move(phase, path, cfg.approach, contact_from)
     if not m.ok:
         return _fail(robot, record, phase, m.outcome, m.reason)
     if passive and m.outcome != "contact":
