@@ -279,15 +279,30 @@ def _median(values: list[float]) -> float | None:
     return float(np.median(values)) if values else None
 
 
-def _differences(runs: list[SequenceRun], mine: str, theirs: str) -> list[float]:
-    """`mine` - `theirs` (SequenceRun fields) over the runs where the sequence and the
-    teleported run of its own skill both succeeded and both were measured."""
+def _paired(
+    runs: list[SequenceRun],
+    mine: str,
+    theirs: str,
+    ran: tuple[str, str] = ("success", "own_teleported_success"),
+) -> list[tuple[float, float]]:
+    """(`mine`, `theirs`) (SequenceRun fields) over the runs where both runs named in `ran`
+    (their success fields) succeeded and both values were measured."""
     out = []
     for r in runs:
         a, b = getattr(r, mine), getattr(r, theirs)
-        if r.success and r.own_teleported_success and a is not None and b is not None:
-            out.append(float(a - b))
+        if all(getattr(r, name) for name in ran) and a is not None and b is not None:
+            out.append((float(a), float(b)))
     return out
+
+
+def _differences(
+    runs: list[SequenceRun],
+    mine: str,
+    theirs: str,
+    ran: tuple[str, str] = ("success", "own_teleported_success"),
+) -> list[float]:
+    """`mine` - `theirs` over the pairs of `_paired`."""
+    return [a - b for a, b in _paired(runs, mine, theirs, ran)]
 
 
 def summarize(runs: list[SequenceRun]) -> list[dict[str, Any]]:
@@ -310,31 +325,23 @@ def summarize(runs: list[SequenceRun]) -> list[dict[str, Any]]:
                 if not r.success:
                     key = f"{r.failed_phase}: {r.outcome}"
                     failures[key] = failures.get(key, 0) + 1
-            both = [r for r in mine if r.success and r.teleported_success]
-            pairs = [
-                r.manipulation_peak_N - r.teleported_peak_N
-                for r in both
-                if r.manipulation_peak_N is not None and r.teleported_peak_N is not None
-            ]
-            true_pairs = [
-                (r.object_force_peak_N, r.teleported_object_force_peak_N)
-                for r in both
-                if r.object_force_peak_N is not None
-                and r.teleported_object_force_peak_N is not None
-            ]
+            today = ("success", "teleported_success")
+            pairs = _differences(mine, "manipulation_peak_N", "teleported_peak_N", today)
+            true_pairs = _paired(
+                mine, "object_force_peak_N", "teleported_object_force_peak_N", today
+            )
             # the sequence against the teleported start of the same skill, and the teleported
             # start's own change with the demonstration (today's against the sequence's skill)
             own = _differences(mine, "manipulation_peak_N", "own_teleported_peak_N")
             own_true = _differences(
                 mine, "object_force_peak_N", "own_teleported_object_force_peak_N"
             )
-            demo_true = [
-                r.teleported_object_force_peak_N - r.own_teleported_object_force_peak_N
-                for r in mine
-                if r.teleported_success and r.own_teleported_success
-                and r.teleported_object_force_peak_N is not None
-                and r.own_teleported_object_force_peak_N is not None
-            ]  # fmt: skip
+            demo_true = _differences(
+                mine,
+                "teleported_object_force_peak_N",
+                "own_teleported_object_force_peak_N",
+                ("teleported_success", "own_teleported_success"),
+            )
             contact = [r.contact_error_mm for r in mine if r.contact_error_mm is not None]
             first = [r.first_contact_error_mm for r in mine if r.first_contact_error_mm is not None]
             scale = 100.0 if kind in ("drawer", "plate", "pole", "window") else math.degrees(1)
