@@ -1,6 +1,8 @@
 """The calibration (control/calibrate.py) against the simulator's truth, on both robots.
 
     python benchmarks/calibration.py [--seeds 5] [--out benchmarks/results/calibration.json]
+    python benchmarks/calibration.py --pushes-alone [--seeds 5]
+        --out benchmarks/results/calibration_pushes_alone.json
     python benchmarks/calibration.py --tool-point [--seeds 1]
         --out benchmarks/results/calibration_tool_point.json
     python benchmarks/calibration.py --free-space [--seeds 1]
@@ -26,8 +28,12 @@ Each calibration runs through an adapter that forwards only the Robot protocol's
 members (no `translational_stiffness`, `tracking_time_constant`, `grasp_contact` or `hold`),
 on every task of the suite as the calibration's fixture (the hand holds the task's handle),
 for the hook hand and the Jaco at the stiffnesses of their advertised ranges (IN_RANGE), with
-the suite's sensor noise (0.1 N per axis) drawn from `--seeds` seeds. Each measured value
-is compared with the simulator's truth:
+the suite's sensor noise (0.1 N per axis) drawn from `--seeds` seeds. As the user guide has
+it, each grasp's calibration is given the robot's free-space calibration (one per robot,
+stiffness and seed, at the drawer's grasp posture, its own noise draw): its tau, and its
+readings at rest pooled into the noise; `--pushes-alone` leaves it out (tau from the pushes,
+the noise from the grasp's readings alone). Each measured value is compared with the
+simulator's truth:
 
 - stiffness: the force per setpoint step at the tool point with the object locked
   (`tool_point_stiffness`, settled, the median over the blocked workplane directions); the
@@ -72,6 +78,7 @@ from constraint_aware.bench.provenance import write_results
 from constraint_aware.control.calibrate import CalibrationConfig, calibrate
 from constraint_aware.control.free_space import FreeSpaceConfig, calibrate_free_space
 from constraint_aware.control.probe import push_directions
+from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.simulate import RunSpec, grasped
 from constraint_aware.sim.embodiment import VARIANT_RANGES
 from constraint_aware.sim.tasks import TASKS
@@ -83,7 +90,10 @@ SENSOR_NOISE = 0.1  # [N] the suite's (RunSpec's default)
 #: relative tolerances of the must-shows
 TOLERANCE = {"stiffness": 0.10, "tracking_time_constant": 0.20, "force_noise": 0.20}
 MAX_ROBOT_TIME = 5.0  # [s]
+FREE_SPACE_SEED = 90_000  # the free-space calibrations' noise seeds start here (apart from
+# every grasp's)
 BAR_TASKS = ("drawer-opening", "door-opening")
+ROBOT_WIDE_POSTURE = "drawer-opening"  # the grasp posture of the robot-wide calibration
 
 
 class RequiredMembers:
@@ -136,6 +146,7 @@ def calibrate_one(
     task: str,
     seed: int,
     k_truth: float | None = None,
+    free_space: RobotProfile | None = None,
     **overrides: Any,
 ) -> dict:
     spec = RunSpec(
@@ -148,7 +159,9 @@ def calibrate_one(
     task_cfg, sim = grasped(spec)
     config = CalibrationConfig(force_limit=min(CalibrationConfig.force_limit, task_cfg.force_limit))
     start = time.perf_counter()
-    profile = calibrate(RequiredMembers(sim), spec.robot, task_cfg.workplane_normal, config, task)
+    profile = calibrate(
+        RequiredMembers(sim), spec.robot, task_cfg.workplane_normal, config, task, free_space
+    )
     wall = time.perf_counter() - start
     truth = {
         "stiffness": k_truth if k_truth is not None else float(sim.translational_stiffness),
@@ -162,6 +175,7 @@ def calibrate_one(
         "task": task,
         "seed": seed,
         "overrides": {k: v for k, v in overrides.items()},
+        "free_space_profile": free_space is not None,
         "periods": profile.periods,
         "robot_time_s": profile.robot_time,
         "outcome": profile.outcome,
@@ -188,16 +202,33 @@ def calibrate_one(
     return row
 
 
-def sweep(seeds: int) -> Iterator[dict]:
+def robot_wide_free_space(robot: str, stiffness: float, seed: int) -> RobotProfile:
+    """The robot's free-space calibration at the drawer's grasp posture (one per robot, as
+    the user guide makes it), its noise drawn from `seed`."""
+    spec = RunSpec(ROBOT_WIDE_POSTURE, seed=seed, robot=robot_spec(robot, stiffness),
+                   sensor_noise=SENSOR_NOISE)  # fmt: skip
+    _task, sim = grasped(spec)
+    return calibrate_free_space(RequiredMembers(sim.in_free_space()), spec.robot)
+
+
+def sweep(seeds: int, with_free_space: bool = True) -> Iterator[dict]:
     """Every robot, stiffness and fixture, each with its own noise seeds (no two cells share
-    a noise draw)."""
+    a noise draw). With `with_free_space`, each grasp's calibration is given the robot's
+    free-space calibration (one per robot, stiffness and seed, its own noise draw, at the
+    drawer's grasp posture, serving every fixture), as the user guide has it."""
     for r, robot in enumerate(ROBOTS):
         for s, stiffness in enumerate(IN_RANGE[robot]):
+            free = [
+                robot_wide_free_space(robot, stiffness, FREE_SPACE_SEED + 1000 * r + 100 * s + i)
+                if with_free_space
+                else None
+                for i in range(seeds)
+            ]
             for t, task in enumerate(TASKS):
                 truth = tool_point_stiffness(robot, stiffness, task)
                 for i in range(seeds):
                     seed = 1000 * r + 100 * s + 10 * t + i
-                    row = calibrate_one(robot, stiffness, task, seed)
+                    row = calibrate_one(robot, stiffness, task, seed, free_space=free[i])
                     _stiffness_truth(row, truth)
                     q = row["quantities"]
                     print(
@@ -371,10 +402,16 @@ def jaco_step_sizes() -> list[dict]:
     return out
 
 
-def noise_seeds(count: int = 40) -> dict[str, Any]:
-    """sigma over `count` seeds on the hook hand's drawer: the share within 20 %, beside
-    the share a Gaussian estimate with the calibration's degrees of freedom would give."""
-    rows = [calibrate_one("hook-hand", 2000.0, "drawer-opening", 50_000 + i) for i in range(count)]
+def noise_seeds(count: int = 40, with_free_space: bool = True) -> dict[str, Any]:
+    """sigma over `count` seeds on the hook hand's drawer (each with its own free-space
+    calibration when `with_free_space`): the share within 20 %, beside the share a Gaussian
+    estimate with the calibration's degrees of freedom would give."""
+    rows = []
+    for i in range(count):
+        free = robot_wide_free_space("hook-hand", 2000.0, 60_000 + i) if with_free_space else None
+        rows.append(
+            calibrate_one("hook-hand", 2000.0, "drawer-opening", 50_000 + i, free_space=free)
+        )
     noise = [r["quantities"]["force_noise"] for r in rows]
     ratios = [q["ratio"] for q in noise]
     relative = statistics.median(q["uncertainty"] / q["value"] for q in noise)
@@ -598,9 +635,6 @@ def tool_point(seeds: int) -> dict[str, Any]:
     return {"stiffnesses": IN_RANGE, "summary": summary, "rows": rows}
 
 
-ROBOT_WIDE_POSTURE = "drawer-opening"  # the grasp posture of the robot-wide calibration
-
-
 def free_space_sweep(seeds: int) -> dict[str, Any]:
     """The free-space calibration against tau on both robots, every in-range stiffness and
     task posture (module docstring)."""
@@ -726,6 +760,12 @@ def main() -> None:
         action="store_true",
         help="only the free-space calibration's tau against the simulators' (module docstring)",
     )
+    parser.add_argument(
+        "--pushes-alone",
+        action="store_true",
+        help="calibrate each grasp without the robot's free-space calibration (tau from the "
+        "pushes, the noise from the grasp's own readings at rest)",
+    )
     args = parser.parse_args()
     if args.seeds < 1:
         parser.error("--seeds must be >= 1")
@@ -743,7 +783,8 @@ def main() -> None:
         write_results(args.out, out)
         print(f"wrote {args.out}")
         return
-    rows = list(sweep(args.seeds))
+    with_free_space = not args.pushes_alone
+    rows = list(sweep(args.seeds, with_free_space))
     results: dict[str, Any] = {
         "config": {
             "seeds": args.seeds,
@@ -752,13 +793,19 @@ def main() -> None:
             "tasks": list(TASKS),
             "sensor_noise_N": SENSOR_NOISE,
             "calibration": vars(CalibrationConfig()),
+            "free_space_profile": (
+                f"one per robot, stiffness and seed at the {ROBOT_WIDE_POSTURE} grasp posture"
+                if with_free_space
+                else None
+            ),
+            "free_space": vars(FreeSpaceConfig()) if with_free_space else None,
         },
         "must_shows": must_shows(rows),
         "summary": summarize(rows),
         "diagnostics": {
             "wrist_rotation": wrist_rotation(),
             "jaco_step_sizes": jaco_step_sizes(),
-            "noise_seeds": noise_seeds(),
+            "noise_seeds": noise_seeds(with_free_space=with_free_space),
         },
         "calibrations": rows,
         "wall_time_s": time.perf_counter() - start,

@@ -18,6 +18,7 @@ from constraint_aware.control.calibrate import calibrate
 from constraint_aware.control.free_space import FreeSpaceConfig, calibrate_free_space
 from constraint_aware.control.profile import RobotProfile
 from constraint_aware.control.tracking_fit import step_rise_time
+from constraint_aware.deadband import threshold_from_noise
 from constraint_aware.errors import ConfigError, InvalidInputError
 from constraint_aware.spatial import Pose, Wrench
 
@@ -308,6 +309,36 @@ def test_a_grasp_calibration_takes_the_free_space_lag_error_where_its_pushes_lea
     assert per_speed.source and "'arm'" in per_speed.source
     assert "lag_error" in per_speed.method
     assert any(n.startswith("deflection_error_per_speed from the calibration") for n in given.notes)
+
+
+def test_a_grasp_calibration_pools_its_noise_with_the_free_space_readings(
+    free_profile: RobotProfile,
+) -> None:
+    """The noise is the sensor's: a grasp whose readings at rest spread as in free space pools
+    them with the free-space ones, weighted by their degrees of freedom; a grasp that spreads
+    more (something held adds spread its dead band must cover) keeps its own, noted."""
+    free = free_profile.quantities["force_noise"]
+    assert free.value is not None and free.uncertainty is not None
+    normal = (0.0, 0.0, 1.0)
+    alone = calibrate(ImpedanceArm(wall=0.001, seed=3), "arm", normal)
+    given = calibrate(
+        ImpedanceArm(wall=0.001, seed=3), "arm", normal, free_space_profile=free_profile
+    )
+    own, pooled = alone.quantities["force_noise"], given.quantities["force_noise"]
+    assert own.value is not None and own.uncertainty is not None
+    assert pooled.value is not None and pooled.uncertainty is not None
+    assert pooled.count == own.count + free.count
+    assert min(own.value, free.value) < pooled.value < max(own.value, free.value)
+    assert pooled.uncertainty < min(own.uncertainty, free.uncertainty)
+    assert "pooled with the" in pooled.method and "'arm'" in pooled.method
+    assert given.value("dead_band") == threshold_from_noise(pooled.value)
+    # a grasp three times as noisy keeps its own sigma
+    noisy = calibrate(
+        ImpedanceArm(wall=0.001, noise=0.3, seed=3), "arm", normal, free_space_profile=free_profile
+    )
+    assert noisy.value("force_noise") == pytest.approx(0.3, rel=0.25)
+    assert noisy.quantities["force_noise"].count < pooled.count
+    assert any("not pooled with it" in n for n in noisy.notes)
 
 
 def test_a_free_space_profile_at_another_control_period_is_refused(

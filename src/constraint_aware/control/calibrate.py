@@ -72,9 +72,11 @@ calibration (`control.free_space.calibrate_free_space`) measures it (and the noi
 robot with the hand in free space, from setpoint steps over a path a staircase has cleared
 first, and the lag model's error per unit speed (`lag_error`) from setpoint ramps at the
 executor's step per period over the same path; given to `calibrate` as `free_space_profile`,
-its tau replaces the pushes' estimate, and k x its lag error is the deflection error per
+its tau replaces the pushes' estimate, k x its lag error is the deflection error per
 speed where no push moved the hand at a steady speed, the `source` of each quantity naming
-that calibration.
+that calibration, and its readings at rest are pooled into the noise (the sensor's, which
+free space, where nothing held creeps, measures with more readings than a grasp's budget
+leaves) when the two spreads agree within POOL_RATIO.
 
 Safety (`control.calibration_session`, the session both calibrations drive the robot with):
 every reading is checked (finite force and poses, not stale, |F - F_rest| within
@@ -105,8 +107,10 @@ from constraint_aware.control.calibration_session import (
     Reading,
     force_spread,
     measure_noise,
+    noise_dof,
     rest_phase,
     run_calibration,
+    set_noise,
 )
 from constraint_aware.control.lag import LagModel
 from constraint_aware.control.probe import (
@@ -255,7 +259,9 @@ def calibrate(
             tracking time constant is taken, with its `source` named, in place of the
             pushes' estimate (noted beside it), and used for the stiffness and the deflection
             error; where no push moved the hand at a steady speed, the deflection error per
-            speed is the stiffness times its `lag_error`. None: tau from the pushes.
+            speed is the stiffness times its `lag_error`; its readings at rest are pooled
+            into the noise when their spread agrees with the grasp's (`_pool_noise`). None:
+            tau from the pushes, the noise from the grasp's readings alone.
 
     Returns:
         The profile; its `outcome` says whether every phase ran. The robot is told to hold
@@ -273,6 +279,7 @@ def calibrate(
     period = check_number("robot.control_period", robot.control_period, low=0, low_open=True)
     prior = _free_space_tau(free_space_profile, period)
     lag_prior = _free_space_quantity(free_space_profile, "lag_error")
+    noise_prior = _free_space_quantity(free_space_profile, "force_noise")
     profile = RobotProfile(
         robot=name,
         quantities={q: Measurement.unmeasured(q, "not reached") for q in QUANTITY_NAMES},
@@ -284,7 +291,7 @@ def calibrate(
         robot,
         profile,
         lambda start: _PushSession(robot, cfg, start),
-        lambda session: _run(session, normal, profile, prior, lag_prior),
+        lambda session: _run(session, normal, profile, prior, lag_prior, noise_prior),
     )
 
 
@@ -335,12 +342,44 @@ def _time_constant_or_prior(
     profile.quantities["tracking_time_constant"] = prior
 
 
+def _pool_noise(profile: RobotProfile, prior: Measurement | None) -> None:
+    """The force noise pooled with the free-space calibration's (`prior`), weighted by their
+    degrees of freedom, when the two agree within POOL_RATIO: the noise is the sensor's, and
+    free space, where nothing the hand holds creeps, gives it more readings than a grasp's
+    budget leaves. A grasp's readings that spread more or less than that keep their own
+    sigma (something in the grasp adds spread, which its dead band must cover), noted."""
+    own = profile.quantities["force_noise"]
+    if prior is None or prior.value is None or own.value is None:
+        return
+    ratio = own.value / prior.value
+    if not 1 / POOL_RATIO <= ratio <= POOL_RATIO:
+        profile.notes.append(
+            f"the readings at rest spread {own.value:.3g} N, {ratio:.2f} x the free-space "
+            f"calibration's {prior.value:.3g} N: not pooled with it"
+        )
+        return
+    dof_own, dof_prior = noise_dof(own), noise_dof(prior)
+    dof = dof_own + dof_prior
+    sigma = math.sqrt((dof_own * own.value**2 + dof_prior * prior.value**2) / dof)
+    set_noise(
+        profile,
+        Measurement(
+            sigma,
+            sigma / math.sqrt(2 * dof),
+            "N",
+            f"{own.method}; pooled with the {prior.count} readings at rest of the {prior.source}",
+            own.count + prior.count,
+        ),
+    )
+
+
 def _run(
     session: _PushSession,
     normal: FloatArray | None,
     profile: RobotProfile,
     prior: Measurement | None = None,
     lag_prior: Measurement | None = None,
+    noise_prior: Measurement | None = None,
 ) -> None:
     robot, cfg = session.robot, session.cfg
     k_report, k_note = reported_stiffness(robot)
@@ -361,6 +400,7 @@ def _run(
                 f"the readings at rest after the pushes spread {last:.3g} N against "
                 f"{first:.3g} N before them (the grasp still moving): not pooled into the noise"
             )
+    _pool_noise(profile, noise_prior)
     period = robot.control_period
     _stiffness(profile, pushes, normal, cfg, period)
     _time_constant_or_prior(profile, pushes, period, prior)

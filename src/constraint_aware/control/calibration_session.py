@@ -43,8 +43,10 @@ __all__ = [
     "SessionLimits",
     "force_spread",
     "measure_noise",
+    "noise_dof",
     "rest_phase",
     "run_calibration",
+    "set_noise",
 ]
 
 #: Identical wrench samples in a row that stop the calibration (a stale driver).
@@ -335,7 +337,9 @@ def rest_phase(session: CalibrationSession[Any], profile: RobotProfile) -> list[
     return readings
 
 
-def measure_noise(profile: RobotProfile, windows: list[list[Reading]]) -> None:
+def measure_noise(
+    profile: RobotProfile, windows: list[list[Reading]], between: str = "the pushes"
+) -> None:
     """sigma (`force_noise`) from the readings at rest: the spread about a straight line per
     axis and window (a drifting reading is not noise), pooled over the axes and the windows
     of at least three readings; the dead band (`dead_band`) from it.
@@ -343,6 +347,7 @@ def measure_noise(profile: RobotProfile, windows: list[list[Reading]]) -> None:
     Args:
         profile: the profile the two quantities (and notes on drift) go into.
         windows: the windows of readings at rest; at least one of three readings or more.
+        between: what the windows are before and after (the method's text).
     """
     used = [w for w in windows if len(w) >= 3]
     squares = sum(float(np.sum(_about_a_line(np.array([r.force for r in w])) ** 2)) for w in used)
@@ -350,23 +355,18 @@ def measure_noise(profile: RobotProfile, windows: list[list[Reading]]) -> None:
     count = sum(len(w) for w in used)
     sigma = math.sqrt(squares / dof)
     sigma_u = sigma / math.sqrt(2 * dof)
-    q = profile.quantities
-    q["force_noise"] = Measurement(
-        sigma,
-        sigma_u,
-        "N",
-        f"{count} readings at rest, one per period (windows of "
-        f"{' + '.join(str(len(w)) for w in used)}, before and after the pushes): the spread "
-        "about a straight line per axis and window (drift removed), pooled over x, y, z",
-        count,
-    )
-    band = threshold_from_noise(sigma)
-    q["dead_band"] = Measurement(
-        band,
-        0.0 if band == MIN_THRESHOLD else NOISE_SIGMAS * sigma_u,
-        "N",
-        f"deadband.threshold_from_noise: max({MIN_THRESHOLD:g} N, {NOISE_SIGMAS:g} sigma)",
-        count,
+    set_noise(
+        profile,
+        Measurement(
+            sigma,
+            sigma_u,
+            "N",
+            f"{count} readings at rest, one per period (windows of "
+            f"{' + '.join(str(len(w)) for w in used)}, before and after {between}): the "
+            "spread about a straight line per axis and window (drift removed), pooled over "
+            "x, y, z",
+            count,
+        ),
     )
     if sigma < QUIET_SIGMA:
         profile.notes.append(
@@ -389,6 +389,30 @@ def measure_noise(profile: RobotProfile, windows: list[list[Reading]]) -> None:
                 f"the reading at rest changed by {change:.2f} N over the calibration (the "
                 "grasp or the object moved under the pushes)"
             )
+
+
+def set_noise(profile: RobotProfile, noise: Measurement) -> None:
+    """Put the force noise sigma `noise` [N] into `profile` (`force_noise`) with the dead band
+    derived from it (`dead_band`: `deadband.threshold_from_noise`)."""
+    assert noise.value is not None and noise.uncertainty is not None
+    band = threshold_from_noise(noise.value)
+    profile.quantities["force_noise"] = noise
+    profile.quantities["dead_band"] = Measurement(
+        band,
+        0.0 if band == MIN_THRESHOLD else NOISE_SIGMAS * noise.uncertainty,
+        "N",
+        f"deadband.threshold_from_noise: max({MIN_THRESHOLD:g} N, {NOISE_SIGMAS:g} sigma)",
+        noise.count,
+        source=noise.source,
+    )
+
+
+def noise_dof(noise: Measurement) -> float:
+    """The degrees of freedom of a noise sigma measured by `measure_noise` (its standard
+    uncertainty is sigma / sqrt(2 dof)); 0 when unmeasured or given no uncertainty."""
+    if noise.value is None or not noise.uncertainty:
+        return 0.0
+    return 0.5 * (noise.value / noise.uncertainty) ** 2
 
 
 def force_spread(window: list[Reading]) -> float:

@@ -58,7 +58,8 @@ class FreeSpaceConfig:
     """How the free-space calibration moves (`calibrate_free_space`). Units in brackets.
     Validated at construction (ConfigError names the field and its valid range)."""
 
-    rest_periods: int = 12  # readings at rest before the steps and again after them (>= 3)
+    rest_periods: int = 24  # readings at rest before the steps and again after them (>= 3):
+    # the noise a grasp's calibration pools with its own
     force_limit: float = 20.0  # [N] |F - F_rest| above this stops the calibration
     contact_force: float = 3.0  # [N] |F - F_rest| at which a move has met something: stop
     max_stiffness: float = 20_000.0  # [N/m] the stiffest arm the clearance stairs are sized
@@ -207,7 +208,7 @@ def _run_free_space(session: _Session, cfg: FreeSpaceConfig, profile: RobotProfi
     if len(final) >= 3:
         first, last = force_spread(rest), force_spread(final)
         if first > 0 and 1 / POOL_RATIO <= last / first <= POOL_RATIO:
-            measure_noise(profile, [rest, final])
+            measure_noise(profile, [rest, final], "the steps")
         else:
             profile.notes.append(
                 f"the readings at rest after the steps spread {last:.3g} N against {first:.3g} "
