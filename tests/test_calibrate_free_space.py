@@ -338,7 +338,40 @@ def test_a_grasp_calibration_pools_its_noise_with_the_free_space_readings(
     )
     assert noisy.value("force_noise") == pytest.approx(0.3, rel=0.25)
     assert noisy.quantities["force_noise"].count < pooled.count
-    assert any("not pooled with it" in n for n in noisy.notes)
+    assert sum("free-space calibration's noise" in n for n in noisy.notes) == 2
+
+
+def test_a_grasp_window_still_settling_is_left_out_of_the_noise(
+    free_profile: RobotProfile,
+) -> None:
+    """A window at rest that spreads unlike the free-space noise (the grasp still creeping
+    when the calibration starts) is left out; the other window is pooled with free space."""
+    free = free_profile.quantities["force_noise"]
+    assert free.value is not None
+
+    class SettlingArm(ImpedanceArm):
+        """Reads twice its noise for its first 12 readings (the grasp settling)."""
+
+        reads = 0
+
+        def read_wrench(self) -> Wrench:
+            self.reads += 1
+            scale = 2.0 if self.reads <= 12 else 1.0
+            return Wrench(
+                self.wall_force() + scale * self.noise * self.rng.normal(size=3), np.zeros(3)
+            )
+
+    normal = (0.0, 0.0, 1.0)
+    given = calibrate(
+        SettlingArm(wall=0.001, seed=3), "arm", normal, free_space_profile=free_profile
+    )
+    noise = given.quantities["force_noise"]
+    assert noise.value == pytest.approx(0.1, rel=0.2)
+    assert "one window" in noise.method and "pooled with the" in noise.method
+    assert any(n.startswith("the readings at rest before the pushes spread") for n in given.notes)
+    # without the free-space reference the settling window is the one kept
+    alone = calibrate(SettlingArm(wall=0.001, seed=3), "arm", normal)
+    assert alone.value("force_noise") == pytest.approx(0.2, rel=0.3)
 
 
 def test_a_free_space_profile_at_another_control_period_is_refused(

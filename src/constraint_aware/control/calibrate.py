@@ -36,7 +36,8 @@ The phases (one reading per control period throughout):
 3. The quantities:
    - force noise sigma: the readings' spread about a straight line per axis (a drifting
      reading is not noise), pooled over the rest before the pushes and the rest after them
-     (when the two spreads agree within POOL_RATIO);
+     (when the two spreads agree within POOL_RATIO; with a free-space calibration, the
+     windows that agree with its noise, pooled with its readings: `_noise`);
      the dead band is `deadband.threshold_from_noise(sigma)`;
    - stiffness k: what the controller's step force k x step means, the force one setpoint
      step adds against a blocked direction: k = |F_B - F_A| / |setpoint_B - setpoint_A|
@@ -76,7 +77,7 @@ its tau replaces the pushes' estimate, k x its lag error is the deflection error
 speed where no push moved the hand at a steady speed, the `source` of each quantity naming
 that calibration, and its readings at rest are pooled into the noise (the sensor's, which
 free space, where nothing held creeps, measures with more readings than a grasp's budget
-leaves) when the two spreads agree within POOL_RATIO.
+leaves) with the grasp's windows at rest whose spread agrees with it within POOL_RATIO.
 
 Safety (`control.calibration_session`, the session both calibrations drive the robot with):
 every reading is checked (finite force and poses, not stale, |F - F_rest| within
@@ -260,7 +261,7 @@ def calibrate(
             pushes' estimate (noted beside it), and used for the stiffness and the deflection
             error; where no push moved the hand at a steady speed, the deflection error per
             speed is the stiffness times its `lag_error`; its readings at rest are pooled
-            into the noise when their spread agrees with the grasp's (`_pool_noise`). None:
+            into the noise with the grasp's windows that agree with it (`_noise`). None:
             tau from the pushes, the noise from the grasp's readings alone.
 
     Returns:
@@ -342,22 +343,52 @@ def _time_constant_or_prior(
     profile.quantities["tracking_time_constant"] = prior
 
 
-def _pool_noise(profile: RobotProfile, prior: Measurement | None) -> None:
+def _noise(
+    profile: RobotProfile, rest: list[Reading], final: list[Reading], prior: Measurement | None
+) -> None:
+    """The force noise from the windows at rest before and after the pushes (`final` counts
+    with three readings or more; `measure_noise`).
+
+    With the free-space calibration's noise (`prior`): the windows whose spread agrees with it
+    within POOL_RATIO, pooled with it (`_pool_noise`); a window that spreads more or less is
+    left out, noted (a grasp still settling: its creep is not the sensor's noise). Without
+    it, or when no window agrees (something in the grasp adds spread, which its dead band
+    must cover): both windows when they agree with each other within POOL_RATIO, else the
+    one before the pushes."""
+    windows = {"before": rest, "after": final} if len(final) >= 3 else {"before": rest}
+    if prior is not None and prior.value:
+        agree = []
+        for when, window in windows.items():
+            ratio = force_spread(window) / prior.value
+            if 1 / POOL_RATIO <= ratio <= POOL_RATIO:
+                agree.append(window)
+            else:
+                profile.notes.append(
+                    f"the readings at rest {when} the pushes spread {ratio:.2f} x the "
+                    f"free-space calibration's noise ({prior.value:.3g} N): not pooled into "
+                    "the noise"
+                )
+        if agree:
+            measure_noise(profile, agree)
+            _pool_noise(profile, prior)
+            return
+    if "after" in windows:
+        first, last = (force_spread(w) for w in (rest, final))
+        if first > 0 and 1 / POOL_RATIO <= last / first <= POOL_RATIO:
+            measure_noise(profile, [rest, final])
+        else:
+            profile.notes.append(
+                f"the readings at rest after the pushes spread {last:.3g} N against "
+                f"{first:.3g} N before them (the grasp still moving): not pooled into the noise"
+            )
+
+
+def _pool_noise(profile: RobotProfile, prior: Measurement) -> None:
     """The force noise pooled with the free-space calibration's (`prior`), weighted by their
-    degrees of freedom, when the two agree within POOL_RATIO: the noise is the sensor's, and
-    free space, where nothing the hand holds creeps, gives it more readings than a grasp's
-    budget leaves. A grasp's readings that spread more or less than that keep their own
-    sigma (something in the grasp adds spread, which its dead band must cover), noted."""
+    degrees of freedom: the noise is the sensor's, and free space, where nothing the hand
+    holds creeps, gives it more readings than a grasp's budget leaves."""
     own = profile.quantities["force_noise"]
-    if prior is None or prior.value is None or own.value is None:
-        return
-    ratio = own.value / prior.value
-    if not 1 / POOL_RATIO <= ratio <= POOL_RATIO:
-        profile.notes.append(
-            f"the readings at rest spread {own.value:.3g} N, {ratio:.2f} x the free-space "
-            f"calibration's {prior.value:.3g} N: not pooled with it"
-        )
-        return
+    assert own.value is not None and prior.value is not None
     dof_own, dof_prior = noise_dof(own), noise_dof(prior)
     dof = dof_own + dof_prior
     sigma = math.sqrt((dof_own * own.value**2 + dof_prior * prior.value**2) / dof)
@@ -390,17 +421,7 @@ def _run(
     session.touch = max(TOUCH_SHARE * cfg.contact_force, TOUCH_SIGMAS * force_spread(rest))
     pushes = _pushes(session, normal, rest[-1], profile)
     profile.notes.extend(dict.fromkeys(session.notes))
-    final = _final_rest(session)
-    if len(final) >= 3:
-        first, last = (force_spread(w) for w in (rest, final))
-        if first > 0 and 1 / POOL_RATIO <= last / first <= POOL_RATIO:
-            measure_noise(profile, [rest, final])
-        else:
-            profile.notes.append(
-                f"the readings at rest after the pushes spread {last:.3g} N against "
-                f"{first:.3g} N before them (the grasp still moving): not pooled into the noise"
-            )
-    _pool_noise(profile, noise_prior)
+    _noise(profile, rest, _final_rest(session), noise_prior)
     period = robot.control_period
     _stiffness(profile, pushes, normal, cfg, period)
     _time_constant_or_prior(profile, pushes, period, prior)

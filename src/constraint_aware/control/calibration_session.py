@@ -361,10 +361,14 @@ def measure_noise(
             sigma,
             sigma_u,
             "N",
-            f"{count} readings at rest, one per period (windows of "
-            f"{' + '.join(str(len(w)) for w in used)}, before and after {between}): the "
-            "spread about a straight line per axis and window (drift removed), pooled over "
-            "x, y, z",
+            f"{count} readings at rest, one per period ("
+            + (
+                f"windows of {' + '.join(str(len(w)) for w in used)}, before and after {between}"
+                if len(used) > 1
+                else "one window"
+            )
+            + "): the spread about a straight line per axis and window (drift removed), "
+            "pooled over x, y, z",
             count,
         ),
     )
