@@ -337,9 +337,10 @@ def _time_constant_or_prior(
     if prior is None:
         return
     pushes_say = f"{own.value:.3g} s" if own.value is not None else f"unmeasured ({own.reason})"
-    note = f"tracking_time_constant from the {prior.source}; the pushes' own: {pushes_say}"
-    if note not in profile.notes:
-        profile.notes.append(note)
+    head = f"tracking_time_constant from the {prior.source}; the pushes' own: "
+    # the second pass (the stretch less tau v) refits the pushes' own: one note, the last fit
+    profile.notes[:] = [n for n in profile.notes if not n.startswith(head)]
+    profile.notes.append(head + pushes_say)
     profile.quantities["tracking_time_constant"] = prior
 
 
