@@ -37,7 +37,8 @@ simulator's truth:
 
 - stiffness: the force per setpoint step at the tool point with the object locked
   (`tool_point_stiffness`, settled, the median over the blocked workplane directions); the
-  nominal gain where no direction was blocked;
+  nominal gain where no direction was blocked; and each direction the profile notes against
+  the truth in that same direction (`per_direction`);
 - tracking time constant: the robot's reported `tracking_time_constant` (the 63.2 % rise time
   of a 1 cm step in free space); beside it the linear model's c / k, the arm's damping over
   its stiffness at the grasp configuration (`SimulatedRobot.axis_time_constants` is its rise
@@ -257,6 +258,42 @@ def _stiffness_truth(row: dict[str, Any], truth: dict[str, Any]) -> None:
         q["ratio"] = q["value"] / settled
     if q["value"] is not None and quick:
         q["ratio_two_periods"] = q["value"] / quick
+    # each direction the profile notes against the truth in that same direction
+    q["by_direction"] = [
+        {
+            "direction": [float(x) for x in u],
+            "value": k,
+            "ratio": k / d["k_command"],
+            "ratio_two_periods": k / d["k_command_quick"],
+        }
+        for u, k in measured
+        for d in truth["directions"]
+        if float(np.asarray(d["direction"]) @ u) > 0.99
+    ]
+
+
+def per_direction(rows: list[dict]) -> dict[str, Any]:
+    """Per robot: how many of the blocked directions the calibrations measured are within
+    10 % of the truth in the same direction (settled and two periods after the step), all
+    tasks and without the pole, with the two-period ratios' range."""
+    tol = TOLERANCE["stiffness"]
+    out: dict[str, Any] = {}
+    for robot in ROBOTS:
+        for label, keep in (("all", lambda t: True), ("off_pole", lambda t: t != "pole-pulling")):
+            found = [
+                d
+                for r in rows
+                if r["robot"] == robot and keep(r["task"])
+                for d in r["quantities"]["stiffness"].get("by_direction", [])
+            ]
+            quick = [d["ratio_two_periods"] for d in found]
+            out[f"{robot} {label}"] = {
+                "directions": len(found),
+                "within_two_periods": sum(abs(x - 1) <= tol for x in quick),
+                "within_settled": sum(abs(d["ratio"] - 1) <= tol for d in found),
+                "ratio_two_periods_range": [min(quick), max(quick)] if quick else None,
+            }
+    return out
 
 
 def summarize(rows: list[dict]) -> dict[str, Any]:
@@ -802,6 +839,7 @@ def main() -> None:
         },
         "must_shows": must_shows(rows),
         "summary": summarize(rows),
+        "per_direction": per_direction(rows),
         "diagnostics": {
             "wrist_rotation": wrist_rotation(),
             "jaco_step_sizes": jaco_step_sizes(),
