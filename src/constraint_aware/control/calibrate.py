@@ -331,7 +331,7 @@ def _time_constant_or_prior(
     """tau from the free-space calibration (`prior`) when there is one, the pushes' own
     estimate (`_time_constant`) in a note; else the pushes'. tau is the arm controller's, not
     the task's: measured where the arm moves freely, free of the object's resistance and of
-    joints stuck under load (the accuracy of each: docs/design/calibration.md)."""
+    joints stuck under load (the accuracy of each: docs/design/free-space-calibration.md)."""
     _time_constant(profile, pushes, period)
     own = profile.quantities["tracking_time_constant"]
     if prior is None:

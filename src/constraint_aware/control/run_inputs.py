@@ -32,7 +32,7 @@ Where each value comes from (`resolve_robot_values`), first that has it:
 A robot's report of a member the Robot protocol documents (`translational_stiffness`,
 `tracking_time_constant`) ranks above the profile: it is the arm controller's own value,
 which a robot that reports it is trusted to mean (how each compares with the force per
-blocked setpoint step: docs/design/calibration.md). The profile supplies what the robot does
+blocked setpoint step: docs/design/robot-profile.md). The profile supplies what the robot does
 not report, which is what makes a robot with only the required members whole; the record
 notes both values when they differ in source.
 """

@@ -44,7 +44,7 @@ dying (the first three tests) and freezing (the last):
 A Gaussian reading of sigma per axis has a pooled spread below 0.1 sigma over 5 readings of 3
 axes (12 degrees of freedom) with probability below 1e-12, and a real force only adds spread,
 so a healthy sensor never trips the frozen test. The limits of each detection, with numbers:
-docs/design/calibration.md.
+docs/design/dead-sensor.md.
 """
 
 from __future__ import annotations
