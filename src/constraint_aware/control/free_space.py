@@ -124,8 +124,9 @@ def calibrate_free_space(
     """Measure the force noise and offset, the tracking time constant and the lag model's
     error per speed with the hand in free space (holding nothing, clear of everything by more
     than `config.travel` along +x, +y and +z): once per robot and controller setting;
-    `calibrate(..., free_space_profile=...)` takes its tau, and its lag error where a grasp's
-    pushes do not measure the deflection error per speed.
+    `calibrate(..., free_space_profile=...)` takes its tau, its lag error where a grasp's
+    pushes do not measure the deflection error per speed, and pools its readings at rest
+    into the grasp's noise.
 
     The phases (one reading per control period, every reading checked as `calibrate`'s):
     1. rest: `rest_periods` readings (the force offset, the noise);
