@@ -385,6 +385,18 @@ def test_a_free_space_profile_at_another_control_period_is_refused(
         calibrate(FrozenArm(), "frozen", (0.0, 0.0, 1.0), free_space_profile=other)
 
 
+def test_a_grasps_profile_is_refused_as_the_free_space_profile(
+    free_profile: RobotProfile,
+) -> None:
+    """A grasp's profile already pooled the free-space readings into its noise and took its
+    tau: given again as the free-space profile it would count them twice."""
+    normal = (0.0, 0.0, 1.0)
+    grasp = calibrate(ImpedanceArm(wall=0.001), "arm", normal, free_space_profile=free_profile)
+    assert grasp.value("stiffness") is not None
+    with pytest.raises(InvalidInputError, match=r"free_space_profile: a calibration holding"):
+        calibrate(ImpedanceArm(wall=0.001), "arm", normal, free_space_profile=grasp)
+
+
 # --- on the simulated robots -------------------------------------------------------------------
 @pytest.mark.parametrize("robot", ["hook-hand:stiffness=1000", "jaco:stiffness=1000"])
 def test_free_space_tau_on_the_simulated_robots(robot: str) -> None:

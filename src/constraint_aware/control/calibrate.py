@@ -113,6 +113,7 @@ from constraint_aware.control.calibration_session import (
     run_calibration,
     set_noise,
 )
+from constraint_aware.control.free_space import HELD_ONLY
 from constraint_aware.control.lag import LagModel
 from constraint_aware.control.probe import (
     STIFFNESS_VERDICTS,
@@ -299,7 +300,8 @@ def calibrate(
 def _free_space_tau(free_space: RobotProfile | None, period: float) -> Measurement | None:
     """The free-space profile's tracking time constant, its source named; None when there is
     no profile or it left tau unmeasured. InvalidInputError when the profile is not a
-    RobotProfile or was calibrated at another control period."""
+    RobotProfile, was calibrated at another control period, or held an object (it measured
+    a quantity only a grasp measures: free_space.HELD_ONLY)."""
     if free_space is None:
         return None
     if not isinstance(free_space, RobotProfile):
@@ -310,6 +312,13 @@ def _free_space_tau(free_space: RobotProfile | None, period: float) -> Measureme
         raise InvalidInputError(
             f"free_space_profile: calibrated at a control period of "
             f"{free_space.control_period:g} s, the robot's is {period:g} s"
+        )
+    held = [q for q in HELD_ONLY if free_space.quantities[q].measured]
+    if held:  # a grasp's profile: its noise already holds free-space readings, its tau too
+        raise InvalidInputError(
+            f"free_space_profile: a calibration holding an object (it measured "
+            f"{', '.join(held)}), not a free-space one (calibrate_free_space; cap calibrate "
+            "--free-space)"
         )
     return _free_space_quantity(free_space, "tracking_time_constant")
 
