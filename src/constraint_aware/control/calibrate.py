@@ -109,6 +109,7 @@ from constraint_aware.control.calibration_session import (
     force_spread,
     measure_noise,
     noise_dof,
+    pool_rest_windows,
     rest_phase,
     run_calibration,
     set_noise,
@@ -382,15 +383,7 @@ def _noise(
             measure_noise(profile, agree)
             _pool_noise(profile, prior)
             return
-    if "after" in windows:
-        first, last = (force_spread(w) for w in (rest, final))
-        if first > 0 and 1 / POOL_RATIO <= last / first <= POOL_RATIO:
-            measure_noise(profile, [rest, final])
-        else:
-            profile.notes.append(
-                f"the readings at rest after the pushes spread {last:.3g} N against "
-                f"{first:.3g} N before them (the grasp still moving): not pooled into the noise"
-            )
+    pool_rest_windows(profile, rest, final, "the pushes", " (the grasp still moving)")
 
 
 def _pool_noise(profile: RobotProfile, prior: Measurement) -> None:

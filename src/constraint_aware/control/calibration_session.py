@@ -44,6 +44,7 @@ __all__ = [
     "force_spread",
     "measure_noise",
     "noise_dof",
+    "pool_rest_windows",
     "rest_phase",
     "run_calibration",
     "set_noise",
@@ -393,6 +394,29 @@ def measure_noise(
                 f"the reading at rest changed by {change:.2f} N over the calibration (the "
                 "grasp or the object moved under the pushes)"
             )
+
+
+def pool_rest_windows(
+    profile: RobotProfile,
+    first: list[Reading],
+    last: list[Reading],
+    between: str,
+    cause: str = "",
+) -> None:
+    """The noise from the windows at rest before and after `between` (the method's text),
+    pooled (`measure_noise`) when their spreads agree within POOL_RATIO; else the estimate
+    from `first` stays and a note says why `last` is left out (`cause`, e.g. " (the grasp
+    still moving)", after the spreads). `last` counts with three readings or more."""
+    if len(last) < 3:
+        return
+    before, after = force_spread(first), force_spread(last)
+    if before > 0 and 1 / POOL_RATIO <= after / before <= POOL_RATIO:
+        measure_noise(profile, [first, last], between)
+    else:
+        profile.notes.append(
+            f"the readings at rest after {between} spread {after:.3g} N against {before:.3g} "
+            f"N before them{cause}: not pooled into the noise"
+        )
 
 
 def set_noise(profile: RobotProfile, noise: Measurement) -> None:

@@ -21,7 +21,6 @@ from typing import TypeAlias
 import numpy as np
 
 from constraint_aware.control.calibration_session import (
-    POOL_RATIO,
     SAFE_SHARE,
     SETTLE_SHARE,
     TAU_COVERAGE,
@@ -29,8 +28,7 @@ from constraint_aware.control.calibration_session import (
     CalibrationSession,
     CalibrationStop,
     Reading,
-    force_spread,
-    measure_noise,
+    pool_rest_windows,
     rest_phase,
     run_calibration,
 )
@@ -206,15 +204,7 @@ def _run_free_space(session: _Session, cfg: FreeSpaceConfig, profile: RobotProfi
     while len(final) >= 2 and np.linalg.norm(final[1].position - final[0].position) >= tolerance:
         final.pop(0)
     final = final[1:]
-    if len(final) >= 3:
-        first, last = force_spread(rest), force_spread(final)
-        if first > 0 and 1 / POOL_RATIO <= last / first <= POOL_RATIO:
-            measure_noise(profile, [rest, final], "the steps")
-        else:
-            profile.notes.append(
-                f"the readings at rest after the steps spread {last:.3g} N against {first:.3g} "
-                "N before them: not pooled into the noise"
-            )
+    pool_rest_windows(profile, rest, final, "the steps")
     _step_time_constant(profile, responses, session.robot.control_period)
     _lag_error(profile, ramps, session.robot.control_period, cfg)
     if tau_report is not None:
